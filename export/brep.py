@@ -1,0 +1,236 @@
+"""Bézier patches to an OpenCASCADE B-rep with shared topology (DESIGN 3).
+
+Every patch becomes one face on a ``Geom_BezierSurface``; every ``PatchTopology`` vertex and
+edge id becomes exactly one ``TopoDS_Vertex`` / ``TopoDS_Edge`` that all faces using it share,
+so the result is watertight by construction and needs no sewing.
+
+Conventions (see ``patching.surface`` for the patch point ordering):
+
+- pole (i+1, j+1) of the face surface is ``net[i, j]``, U = s, V = t;
+- an edge's 3D curve is the ``Geom_BezierCurve`` on the boundary row of its *first* side
+  (table ``_SIDE_ROW`` below), parameter w in [0, 1] running in the edge's own direction;
+- the pcurve of side k on its face is the straight line on the parameter square from
+  corner k to corner k+1 (``CORNER_PARAMETERS``), or back when ``side_reversed``,
+  parametrised by the same w, so pcurve(w) on the surface equals the 3D curve at w
+  whenever the two patches agree on the shared boundary row: SameParameter holds exactly.
+
+Side rows of a (d+1, d+1) net, in the side's direction (the module docstring of
+``patching.surface`` draws the square)::
+
+    side 0: net[0..d, 0]      (s: 0->1, t = 0)
+    side 1: net[d, 0..d]      (s = 1,   t: 0->1)
+    side 2: net[d..0, d]      (s: 1->0, t = 1)
+    side 3: net[0, d..0]      (s = 0,   t: 1->0)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from OCP.BRep import BRep_Builder
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepGProp import BRepGProp
+from OCP.Geom import Geom_BezierCurve, Geom_BezierSurface
+from OCP.Geom2d import Geom2d_Line
+from OCP.gp import gp_Dir2d, gp_Pnt, gp_Pnt2d
+from OCP.GProp import GProp_GProps
+from OCP.Precision import Precision
+from OCP.TColgp import TColgp_Array1OfPnt, TColgp_Array2OfPnt
+from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
+from OCP.TopoDS import (
+    TopoDS_Edge,
+    TopoDS_Face,
+    TopoDS_Shape,
+    TopoDS_Shell,
+    TopoDS_Solid,
+    TopoDS_Vertex,
+    TopoDS_Wire,
+)
+
+from patching.surface import CORNER_PARAMETERS, BezierSurface
+
+__all__ = ["BrepError", "to_shape", "shape_tolerance"]
+
+#: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
+RELATIVE_TOLERANCE = 1e-7
+
+
+class BrepError(RuntimeError):
+    """OpenCASCADE rejected a B-rep built from a consistent surface: a bug, not bad input."""
+
+
+def _side_row(net: np.ndarray, side: int) -> np.ndarray:
+    """(d+1, 3) boundary coefficients of ``side`` of a (d+1, d+1, 3) net, in the side's direction."""
+    if side == 0:
+        return net[:, 0]
+    if side == 1:
+        return net[-1, :]
+    if side == 2:
+        return net[::-1, -1]
+    return net[0, ::-1]
+
+
+def shape_tolerance(surface: BezierSurface) -> float:
+    """Tolerance given to every vertex, edge and face: 1e-7 * size, at least Precision::Confusion."""
+    return max(Precision.Confusion_s(), RELATIVE_TOLERANCE * float(surface.size))
+
+
+def _bezier_surface(net: np.ndarray) -> Geom_BezierSurface:
+    n = net.shape[0]
+    poles = TColgp_Array2OfPnt(1, n, 1, n)
+    for i in range(n):
+        for j in range(n):
+            x, y, z = net[i, j]
+            poles.SetValue(i + 1, j + 1, gp_Pnt(float(x), float(y), float(z)))
+    return Geom_BezierSurface(poles)
+
+
+def _bezier_curve(row: np.ndarray) -> Geom_BezierCurve:
+    poles = TColgp_Array1OfPnt(1, len(row))
+    for i, (x, y, z) in enumerate(row):
+        poles.SetValue(i + 1, gp_Pnt(float(x), float(y), float(z)))
+    return Geom_BezierCurve(poles)
+
+
+def _pcurve(side: int, reversed_: bool) -> Geom2d_Line:
+    """Line on the parameter square whose parameter w in [0, 1] is the edge's Bézier parameter."""
+    a = CORNER_PARAMETERS[side]
+    b = CORNER_PARAMETERS[(side + 1) % 4]
+    if reversed_:
+        a, b = b, a
+    # Sides are unit length and axis-aligned, so the line's arc length is w.
+    return Geom2d_Line(gp_Pnt2d(float(a[0]), float(a[1])), gp_Dir2d(float(b[0] - a[0]), float(b[1] - a[1])))
+
+
+def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray]]:
+    topo = surface.topology
+    patches = list(surface.patches())
+    p = len(patches)
+    for name in ("corner_vertex", "side_edge", "side_reversed"):
+        shape = np.shape(getattr(topo, name))
+        if shape != (p, 4):
+            raise BrepError(f"PatchTopology.{name} has shape {shape}, expected ({p}, 4)")
+    for row, degree, face, net in patches:
+        if net.shape != (degree + 1, degree + 1, 3):
+            raise BrepError(f"patch {row} (face {face}): net shape {net.shape}, degree {degree}")
+        if not np.all(np.isfinite(net)):
+            raise BrepError(f"patch {row} (face {face}): non-finite coefficients")
+    return patches
+
+
+def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
+    """Build the B-rep of ``surface``: a solid when its topology is closed, else a shell.
+
+    One face per patch on its Bézier surface, with vertices and edges shared through
+    ``surface.topology`` (no sewing).  A closed shell is oriented so that the solid's volume
+    (``BRepGProp``) is positive.  With ``check`` (the default) ``BRepCheck_Analyzer`` must
+    accept the result, else ``BrepError``; ``check=False`` returns it unchecked, for tests
+    that measure deliberately inconsistent surfaces.
+    """
+    patches = _check_input(surface)
+    topo = surface.topology
+    tol = shape_tolerance(surface)
+    builder = BRep_Builder()
+    corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
+    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
+    side_reversed = np.asarray(topo.side_reversed, dtype=bool)
+
+    # Vertices: the corner coefficient of the first patch corner using each id.
+    vertices: list[TopoDS_Vertex | None] = [None] * topo.n_vertices
+    for row, _degree, _face, net in patches:
+        d = net.shape[0] - 1
+        corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
+        for c in range(4):
+            vid = corner_vertex[row, c]
+            if vertices[vid] is None:
+                v = TopoDS_Vertex()
+                x, y, z = corners[c]
+                builder.MakeVertex(v, gp_Pnt(float(x), float(y), float(z)), tol)
+                vertices[vid] = v
+
+    # Edges: 3D curve on the first side's boundary row, between the shared vertices.
+    edges: list[TopoDS_Edge | None] = [None] * topo.n_edges
+    for row, _degree, face, net in patches:
+        for k in range(4):
+            eid = side_edge[row, k]
+            if edges[eid] is not None:
+                continue
+            if side_reversed[row, k]:
+                raise BrepError(f"edge {eid}: its first side (patch {row}, side {k}) is marked reversed")
+            e = TopoDS_Edge()
+            builder.MakeEdge(e, _bezier_curve(_side_row(net, k)), tol)
+            v0 = vertices[corner_vertex[row, k]]
+            v1 = vertices[corner_vertex[row, (k + 1) % 4]]
+            builder.Add(e, v0.Oriented(TopAbs_FORWARD))
+            builder.Add(e, v1.Oriented(TopAbs_REVERSED))
+            edges[eid] = e
+    if any(e is None for e in edges):
+        raise BrepError("PatchTopology.n_edges counts edges that no patch side uses")
+
+    # Faces: surface, pcurves (two on one face for a seam edge), wire of the 4 oriented edges.
+    faces: list[TopoDS_Face] = []
+    for row, _degree, _face, net in patches:
+        f = TopoDS_Face()
+        builder.MakeFace(f, _bezier_surface(net), tol)
+        pcurves: dict[int, dict[bool, Geom2d_Line]] = {}
+        for k in range(4):
+            rev = bool(side_reversed[row, k])
+            pcurves.setdefault(int(side_edge[row, k]), {})[rev] = _pcurve(k, rev)
+        for eid, by_orientation in pcurves.items():
+            if len(by_orientation) == 2:  # seam: the edge bounds this face on two sides
+                builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], f, tol)
+            else:
+                (c,) = by_orientation.values()
+                builder.UpdateEdge(edges[eid], c, f, tol)
+        w = TopoDS_Wire()
+        builder.MakeWire(w)
+        for k in range(4):
+            e = edges[side_edge[row, k]]
+            builder.Add(w, e.Oriented(TopAbs_REVERSED if side_reversed[row, k] else TopAbs_FORWARD))
+        w.Closed(True)
+        builder.Add(f, w)
+        faces.append(f)
+
+    # Every curve representation is parametrised on [0, 1] by construction.
+    for e in edges:
+        builder.Range(e, 0.0, 1.0)
+        builder.SameRange(e, True)
+        builder.SameParameter(e, True)
+
+    shell = TopoDS_Shell()
+    builder.MakeShell(shell)
+    for f in faces:
+        builder.Add(shell, f)
+    shape: TopoDS_Shape = shell
+    if topo.is_closed:
+        shell.Closed(True)
+        solid = TopoDS_Solid()
+        builder.MakeSolid(solid)
+        builder.Add(solid, shell)
+        if _volume(solid) < 0.0:
+            solid = TopoDS_Solid()
+            builder.MakeSolid(solid)
+            builder.Add(solid, shell.Reversed())
+        shape = solid
+
+    if check:
+        _require_valid(shape, faces, patches)
+    return shape
+
+
+def _volume(shape: TopoDS_Shape) -> float:
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(shape, props)
+    return props.Mass()
+
+
+def _require_valid(shape: TopoDS_Shape, faces: list[TopoDS_Face], patches) -> None:
+    if BRepCheck_Analyzer(shape).IsValid():
+        return
+    bad = []
+    for f, (row, _degree, face, _net) in zip(faces, patches):
+        if not BRepCheck_Analyzer(f).IsValid():
+            bad.append(f"patch {row} (face {face})")
+            if len(bad) == 5:
+                break
+    where = ", ".join(bad) if bad else "faces are valid alone; the shell or solid is not"
+    raise BrepError(f"BRepCheck_Analyzer rejects the B-rep: {where}")
