@@ -1,0 +1,162 @@
+"""STEP files through OpenCASCADE's STEPControl: atomic, deterministic writes (DESIGN 3).
+
+``write_step`` writes AP214 (``AUTOMOTIVE_DESIGN``) in millimetres with the product named
+``product_name``.  The file appears only complete: OCC writes a temporary file in the target
+directory, its status must be ``IFSelect_RetDone``, then ``os.replace`` renames it into
+place.  Two writes of one shape differ only in the FILE_NAME header's time stamp.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.IFSelect import IFSelect_RetDone
+from OCP.Interface import Interface_Static
+from OCP.Message import Message, Message_Gravity
+from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+from OCP.StepBasic import StepBasic_Product
+from OCP.TCollection import TCollection_HAsciiString
+from OCP.TopoDS import TopoDS_Shape
+
+try:
+    from patching.errors import InputFileError, OutputError
+except ImportError:  # pragma: no cover - the error family is written alongside this module
+    class OutputError(ValueError):  # type: ignore[no-redef]
+        """The output cannot be written where asked."""
+
+    class InputFileError(ValueError):  # type: ignore[no-redef]
+        """A file that cannot be read."""
+
+__all__ = ["StepError", "write_step", "read_step"]
+
+#: STEP schema written; AP214 is read by every CAD system we know of.
+SCHEMA = "AP214IS"
+
+
+class StepError(RuntimeError):
+    """OpenCASCADE failed to translate or write a shape it should accept: a bug."""
+
+
+@contextlib.contextmanager
+def _quiet_occ():
+    """Raise the default messenger's printers to failures only (OCC prints transfer statistics)."""
+    printers = list(Message.DefaultMessenger_s().Printers())
+    levels = [p.GetTraceLevel() for p in printers]
+    for p in printers:
+        p.SetTraceLevel(Message_Gravity.Message_Fail)
+    try:
+        yield
+    finally:
+        for p, level in zip(printers, levels):
+            p.SetTraceLevel(level)
+
+
+@contextlib.contextmanager
+def _static_values(values: dict[str, str]):
+    """Set Interface_Static parameters for one write, restoring the previous values after."""
+    old = {key: Interface_Static.CVal_s(key) for key in values}
+    try:
+        for key, value in values.items():
+            if not Interface_Static.SetCVal_s(key, value):
+                raise StepError(f"Interface_Static refuses {key} = {value!r}")
+        yield
+    finally:
+        for key, value in old.items():
+            Interface_Static.SetCVal_s(key, value)
+
+
+def _umask() -> int:
+    """The process umask, read without changing it where /proc allows."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _name_products(writer: STEPControl_Writer, product_name: str, file_name: str) -> None:
+    """Give every PRODUCT entity the id and name ``product_name``; the header FILE_NAME the file's."""
+    model = writer.Model()
+    found = 0
+    for i in range(1, model.NbEntities() + 1):
+        entity = model.Value(i)
+        if isinstance(entity, StepBasic_Product):
+            entity.SetId(TCollection_HAsciiString(product_name))
+            entity.SetName(TCollection_HAsciiString(product_name))
+            found += 1
+    if not found:
+        raise StepError("the STEP model has no PRODUCT entity to name")
+    header = APIHeaderSection_MakeHeader(model)
+    header.SetName(TCollection_HAsciiString(file_name))
+    header.Apply(model)
+
+
+def write_step(shape: TopoDS_Shape, path: str | os.PathLike, product_name: str) -> Path:
+    """Write ``shape`` to ``path`` as AP214 STEP in millimetres, atomically; return the path.
+
+    The shape must pass ``BRepCheck_Analyzer`` (else ``StepError``).  An output directory
+    that is missing or not writable raises ``OutputError``; on any failure a file already at
+    ``path`` is left untouched and no temporary file remains.
+    """
+    path = Path(path)
+    if shape.IsNull() or not BRepCheck_Analyzer(shape).IsValid():
+        raise StepError(f"refusing to write an invalid shape to {path}")
+    directory = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise OutputError("the output path is a directory", str(path))
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise OutputError(f"cannot write in {directory}: {exc.strerror}", str(path)) from exc
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        # mkstemp makes the file private (0600); give it the mode a plain open() would.
+        os.chmod(tmp, 0o666 & ~_umask())
+        writer = STEPControl_Writer()  # also registers the write.step.* parameters
+        statics = {
+            "write.step.schema": SCHEMA,
+            "write.step.unit": "MM",
+            "write.step.product.name": product_name,
+        }
+        with _quiet_occ(), _static_values(statics):
+            status = writer.Transfer(shape, STEPControl_AsIs)
+            if status != IFSelect_RetDone:
+                raise StepError(f"STEPControl_Writer.Transfer returned {status} for {path}")
+            _name_products(writer, product_name, path.name)
+            status = writer.Write(str(tmp))
+        if status != IFSelect_RetDone:
+            raise StepError(f"STEPControl_Writer.Write returned {status} for {path}")
+        if tmp.stat().st_size == 0:
+            raise StepError(f"STEPControl_Writer.Write left an empty file for {path}")
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return path
+
+
+def read_step(path: str | os.PathLike) -> TopoDS_Shape:
+    """Read every root of the STEP file at ``path`` into one shape (a compound if several)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError("no such STEP file", str(path))
+    reader = STEPControl_Reader()
+    with _quiet_occ():
+        status = reader.ReadFile(str(path))
+        if status != IFSelect_RetDone:
+            raise InputFileError(f"not a readable STEP file ({status})", str(path))
+        reader.TransferRoots()
+        shape = reader.OneShape()
+    if shape.IsNull():
+        raise InputFileError("the STEP file holds no shape", str(path))
+    return shape
