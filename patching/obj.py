@@ -1,0 +1,220 @@
+"""OBJ control meshes with OpenSubdiv tags and the project's ``interval`` tag (DESIGN 1).
+
+Reads ``v x y z``, ``f a b c ...`` (1-based, ``a/t/n`` forms, negative relative indices) and
+``t NAME nint/nfloat/nstring ints... floats... strings...`` with 0-based vertex ids:
+``interval`` and ``crease`` (vertex pairs; one value for all pairs or one per pair), ``corner``
+(vertices; one value or one per vertex), ``hole`` (faces), ``interpolateboundary`` (0, 1, 2).
+Every error names the file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputFileError, KnotError, MeshError, TagError
+from .mesh import ControlMesh, NupatchWarning, from_arrays
+
+__all__ = ["read_obj", "parse_obj", "write_obj"]
+
+# Statements an OBJ file may carry that say nothing about the control mesh.
+_IGNORED = {"vt", "vn", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
+_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary"}
+
+
+def read_obj(path: str | os.PathLike) -> ControlMesh:
+    """Read an OBJ control mesh; the product name is the file's stem."""
+    path = Path(path)
+    where = str(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputFileError("no such file", where) from None
+    except IsADirectoryError:
+        raise InputFileError("is a directory, not an OBJ file", where) from None
+    except OSError as exc:
+        raise InputFileError(f"cannot read file: {exc.strerror or exc}", where) from None
+    if b"\0" in data[:65536]:
+        raise InputFileError("not an OBJ file (binary data)", where)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"not an OBJ file (not UTF-8 text at byte {exc.start})", where) from None
+    if text.lstrip().startswith("ISO-10303-21"):
+        raise InputFileError("this is a STEP file, not an OBJ control mesh", where)
+    return parse_obj(text, source=path.name, name=path.stem)
+
+
+def _number(token: str, what: str, loc: str) -> float:
+    try:
+        value = float(token)
+    except ValueError:
+        raise InputFileError(f"cannot read {what} '{token}' as a number", loc) from None
+    return value
+
+
+def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> ControlMesh:
+    """Parse OBJ text; ``source`` names the file in error messages."""
+    vertices: list[tuple[float, float, float]] = []
+    faces: list[list[int]] = []
+    intervals: dict[tuple[int, int], float] = {}
+    creases: dict[tuple[int, int], float] = {}
+    corners: dict[int, float] = {}
+    holes: list[int] = []
+    interpolate_boundary = 1
+    locations: dict[tuple, str] = {}
+
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        loc = f"{source}:{lineno}"
+        parts = line.split()
+        key = parts[0]
+        if key == "v":
+            if len(parts) < 4:
+                raise InputFileError("vertex needs three coordinates", loc)
+            xyz = tuple(_number(t, "coordinate", loc) for t in parts[1:4])
+            if not all(math.isfinite(c) for c in xyz):
+                raise MeshError(f"non-finite coordinate of vertex {len(vertices)}", loc)
+            locations[("vertex", len(vertices))] = loc
+            vertices.append(xyz)  # type: ignore[arg-type]
+        elif key == "f":
+            face = []
+            for token in parts[1:]:
+                head = token.split("/", 1)[0]
+                try:
+                    index = int(head)
+                except ValueError:
+                    raise InputFileError(f"cannot read face index '{token}'", loc) from None
+                if index == 0:
+                    raise MeshError("face index 0 (OBJ indices start at 1)", loc)
+                if index < 0:
+                    index = len(vertices) + index + 1
+                    if index <= 0:
+                        raise MeshError(f"relative face index {head} points before the first vertex", loc)
+                face.append(index - 1)
+            if len(face) < 3:
+                raise MeshError(f"face with {len(face)} vertices, at least 3 needed", loc)
+            locations[("face", len(faces))] = loc
+            faces.append(face)
+        elif key == "t":
+            interpolate_boundary = _parse_tag(
+                parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations
+            )
+        elif key in _IGNORED:
+            continue
+        else:
+            raise InputFileError(f"not an OBJ statement: '{key}'", loc)
+
+    if not faces:
+        raise MeshError("empty mesh: no faces", source)
+    n = len(vertices)
+    for f, face in enumerate(faces):
+        for v in face:
+            if v >= n:
+                raise MeshError(
+                    f"face index {v + 1} out of range (the file has {n} vertices)", locations[("face", f)]
+                )
+    return from_arrays(
+        np.array(vertices, dtype=np.float64).reshape(-1, 3),
+        faces,
+        intervals=intervals,
+        creases=creases,
+        corners=corners,
+        holes=holes,
+        interpolate_boundary=interpolate_boundary,
+        name=name,
+        locations=locations,
+    )
+
+
+def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations) -> int:
+    if len(parts) < 3:
+        raise InputFileError("tag needs a name and counts nint/nfloat/nstring", loc)
+    tag = parts[1]
+    try:
+        nint, nfloat, nstring = (int(x) for x in parts[2].split("/"))
+    except ValueError:
+        raise InputFileError(f"tag counts '{parts[2]}' are not nint/nfloat/nstring", loc) from None
+    args = parts[3:]
+    if min(nint, nfloat, nstring) < 0 or len(args) < nint + nfloat + nstring:
+        raise InputFileError(f"tag '{tag}' declares {nint}/{nfloat}/{nstring} arguments, has {len(args)}", loc)
+    try:
+        ints = [int(a) for a in args[:nint]]
+    except ValueError:
+        raise InputFileError(f"tag '{tag}' has a non-integer id", loc) from None
+    floats = [_number(a, f"{tag} value", loc) for a in args[nint : nint + nfloat]]
+    if tag not in _KNOWN_TAGS:
+        warnings.warn(NupatchWarning(f"unknown tag '{tag}' ignored ({loc})"), stacklevel=3)
+        return interpolate_boundary
+    if tag in ("interval", "crease"):
+        if nint == 0 or nint % 2:
+            raise InputFileError(f"{tag} tag needs vertex pairs, got {nint} ids", loc)
+        pairs = [(ints[k], ints[k + 1]) for k in range(0, nint, 2)]
+        values = _values_for(tag, floats, len(pairs), loc)
+        error = KnotError if tag == "interval" else TagError
+        target = intervals if tag == "interval" else creases
+        for (a, b), value in zip(pairs, values):
+            if math.isnan(value) or value < 0 or (tag == "interval" and math.isinf(value)):
+                raise error(f"{tag} {value} of edge {a}-{b} must be finite and >= 0", loc)
+            key = (min(a, b), max(a, b))
+            if tag == "interval" and key in target and target[key] != value:
+                raise KnotError(
+                    f"edge {a}-{b} has two intervals, {target[key]} and {value}",
+                    f"{locations[(tag, key)]} and {loc}",
+                )
+            target[key] = value
+            locations[(tag, key)] = loc
+    elif tag == "corner":
+        values = _values_for(tag, floats, nint, loc)
+        for v, s in zip(ints, values):
+            if math.isnan(s) or s < 0:
+                raise TagError(f"corner sharpness {s} of vertex {v} must be >= 0", loc)
+            corners[v] = s
+            locations[("corner", v)] = loc
+    elif tag == "hole":
+        for f in ints:
+            holes.append(f)
+            locations[("hole", f)] = loc
+    elif tag == "interpolateboundary":
+        if nint != 1 or ints[0] not in (0, 1, 2):
+            raise TagError("interpolateboundary takes one integer 0, 1 or 2", loc)
+        return ints[0]
+    return interpolate_boundary
+
+
+def _values_for(tag: str, floats: list[float], count: int, loc: str) -> list[float]:
+    if len(floats) == 1:
+        return floats * count
+    if len(floats) == count:
+        return floats
+    raise InputFileError(f"{tag} tag has {len(floats)} values for {count} items (give 1 or {count})", loc)
+
+
+def write_obj(mesh: ControlMesh, path: str | os.PathLike, comment: str = "") -> None:
+    """Write a control mesh with its tags so that ``read_obj`` reads it back.
+
+    Writes atomically: a temporary file beside ``path`` renamed into place.
+    """
+    path = Path(path)
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
+    for f in range(mesh.n_faces):
+        lines.append("f " + " ".join(str(int(v) + 1) for v in mesh.face(f)))
+    for (a, b), d in sorted(mesh.intervals.items()):
+        lines.append(f"t interval 2/1/0 {a} {b} {d!r}")
+    for (a, b), s in sorted(mesh.creases.items()):
+        lines.append(f"t crease 2/1/0 {a} {b} {s!r}")
+    for v, s in sorted(mesh.corners.items()):
+        lines.append(f"t corner 1/1/0 {v} {s!r}")
+    for f in sorted(mesh.holes):
+        lines.append(f"t hole 1/0/0 {f}")
+    lines.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}")
+    from .atomic import atomic_write_text
+
+    atomic_write_text(path, "\n".join(lines) + "\n")
