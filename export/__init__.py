@@ -1,0 +1,47 @@
+"""nupatch's edge to CAD: BezierSurface -> OpenCASCADE B-rep -> files (STEP).
+
+Public API (STYLE 4): ``to_shape`` (B-rep), ``to_step`` (build and write atomically),
+``check_continuity`` (validity, gaps and normal jumps of a B-rep or STEP file).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from patching.surface import BezierSurface
+
+__all__ = ["to_shape", "to_step", "write_step", "read_step", "check_continuity"]
+
+
+def to_shape(surface: BezierSurface):
+    """The B-rep (TopoDS_Shape) of a surface: a solid when closed, else a shell."""
+    from .brep import to_shape as _to_shape
+
+    return _to_shape(surface)
+
+
+def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
+    """Build the B-rep of ``surface`` and write it atomically to ``path`` (millimetres, product
+    named ``surface.name``)."""
+    from .step import write_step as _write_step
+
+    return _write_step(to_shape(surface), path, surface.name)
+
+
+def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:
+    from .step import write_step as _write_step
+
+    return _write_step(shape, path, product_name)
+
+
+def read_step(path: str | os.PathLike):
+    from .step import read_step as _read_step
+
+    return _read_step(path)
+
+
+def check_continuity(shape_or_path, **kwargs):
+    from .continuity import check_continuity as _check
+
+    return _check(shape_or_path, **kwargs)

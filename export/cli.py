@@ -1,2 +1,173 @@
-def main():
-    raise SystemExit("not yet")
+"""The ``nupatch`` command line (DESIGN 4): a thin layer over the public functions.
+
+Bad input: one line ``nupatch: error: <what> (<where>)`` on stderr, exit 2, no output file.
+Any other exception is a bug: one line asking for a report, exit 1 (``--debug`` shows it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import patching
+from patching.atomic import check_output_path
+from patching.errors import InputFileError, NupatchError
+
+__all__ = ["main"]
+
+FORMATS = ("step",)
+
+
+def _progress(args: argparse.Namespace, message: str) -> None:
+    if not getattr(args, "quiet", False):
+        print(f"nupatch: {message}", file=sys.stderr)
+
+
+def _format_of(args: argparse.Namespace, out: Path) -> str:
+    fmt = args.format or out.suffix.lower().lstrip(".")
+    fmt = {"stp": "step"}.get(fmt, fmt)
+    if fmt not in FORMATS:
+        raise NupatchError(f"output format '{fmt}' is not supported (supported: {', '.join(FORMATS)})", str(out))
+    return fmt
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from export import to_step
+
+    mesh_path = Path(args.mesh)
+    out = Path(args.output) if args.output else mesh_path.with_suffix(".step")
+    if out.resolve() == mesh_path.resolve():
+        raise NupatchError("the output would overwrite the input mesh", str(out))
+    _format_of(args, out)
+    check_output_path(out)
+    start = time.perf_counter()
+    mesh = patching.read_mesh(mesh_path)
+    surface = patching.build(mesh)
+    _progress(args, f"{surface.n_patches} patches from {mesh.n_faces} faces in {time.perf_counter() - start:.2f} s")
+    start = time.perf_counter()
+    to_step(surface, out)
+    _progress(args, f"wrote {out} in {time.perf_counter() - start:.2f} s")
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    mesh = patching.read_mesh(args.mesh)
+    topo = patching.Topology(mesh)
+    ep = topo.extraordinary
+    valences = {int(v): int(c) for v, c in zip(*np.unique(topo.valence[ep], return_counts=True))}
+    strips = topo.strips_summary()
+    intervals = sorted({d for _, _, d in strips})
+    info = {
+        "name": mesh.name,
+        "vertices": mesh.n_vertices,
+        "faces": mesh.n_faces,
+        "face_sizes": {int(k): int(c) for k, c in zip(*np.unique(mesh.face_sizes, return_counts=True))},
+        "edges": topo.n_edges,
+        "extraordinary_points": {"count": int(ep.size), "by_valence": valences},
+        "strips": len(strips),
+        "intervals": {"distinct": intervals[:20], "min": min(intervals), "max": max(intervals)},
+        "sharp_edges": int(np.count_nonzero(topo.edge_sharpness >= patching.mesh.INFINITELY_SHARP)),
+        "semi_sharp_edges": int(np.count_nonzero((topo.edge_sharpness > 0) & (topo.edge_sharpness < 10))),
+        "boundary_edges": int(np.count_nonzero(topo.edge_is_boundary)),
+        "closed": bool(not topo.edge_is_boundary.any()),
+        "interpolate_boundary": mesh.interpolate_boundary,
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{mesh.name}: {info['vertices']} vertices, {info['faces']} faces, {info['edges']} edges")
+    print(f"  face sizes: {info['face_sizes']}")
+    print(f"  extraordinary points: {ep.size}" + (f" (valence: count {valences})" if valences else ""))
+    print(f"  strips: {len(strips)}, intervals from {min(intervals):g} to {max(intervals):g}")
+    print(f"  sharp edges: {info['sharp_edges']}, semi-sharp: {info['semi_sharp_edges']}")
+    print(f"  boundary edges: {info['boundary_edges']} ({'closed' if info['closed'] else 'open'})")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from export.continuity import check_continuity
+
+    path = Path(args.file)
+    _require_step(path)
+    report = check_continuity(path)
+    if args.json:
+        print(report.to_json())
+    else:
+        print(report.summary())
+    return 0 if report.valid else 1
+
+
+def _require_step(path: Path) -> None:
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+    except FileNotFoundError:
+        raise InputFileError("no such file", str(path)) from None
+    except OSError as exc:
+        raise InputFileError(f"cannot read file: {exc.strerror}", str(path)) from None
+    if not head.lstrip().startswith(b"ISO-10303-21"):
+        raise InputFileError("not a STEP file (no ISO-10303-21 header)", str(path))
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="nupatch",
+        description="Quad control meshes with knot intervals to smooth Bezier/NURBS B-reps (STEP).",
+    )
+    parser.add_argument("--version", action="version", version=f"nupatch {patching.__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell")
+    p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
+    p.add_argument("-o", "--output", metavar="OUT", help="output file (default: MESH with .step)")
+    p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
+    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("check", help="validity and continuity of a STEP file")
+    p.add_argument("file", metavar="FILE.step")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_check)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", patching.NupatchWarning)
+        try:
+            code = args.func(args)
+        except NupatchError as exc:
+            code = _fail(f"error: {exc}", 2)
+        except KeyboardInterrupt:
+            code = _fail("interrupted", 130)
+        except Exception as exc:  # a bug: say so in one line unless --debug
+            if args.debug:
+                raise
+            code = _fail(f"internal error: {type(exc).__name__}: {exc} (please report; --debug shows the traceback)", 1)
+        finally:
+            for w in caught:
+                if issubclass(w.category, patching.NupatchWarning):
+                    print(f"nupatch: warning: {w.message}", file=sys.stderr)
+    return code
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"nupatch: {' '.join(message.split())}", file=sys.stderr)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""Control meshes made from parameters: torus grids and open grids, for models, tests and
+benchmarks.  Vertex (a, b) of an m x n grid has id ``a * n + b``; a runs along u."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .mesh import ControlMesh, from_arrays
+
+__all__ = ["torus_grid", "open_grid"]
+
+
+def torus_grid(
+    m: int,
+    n: int,
+    u_intervals: Sequence[float] | None = None,
+    v_intervals: Sequence[float] | None = None,
+    major_radius: float = 3.0,
+    minor_radius: float = 1.0,
+    name: str = "torus",
+) -> ControlMesh:
+    """Closed m x n quad grid on a torus; u_intervals[a] is the interval of the strip of
+    edges (a, b)-(a+1, b), v_intervals[b] of (a, b)-(a, b+1) (default 1)."""
+    a, b = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
+    u = 2 * np.pi * a / m
+    w = 2 * np.pi * b / n
+    ring = major_radius + minor_radius * np.cos(w)
+    vertices = np.stack([ring * np.cos(u), ring * np.sin(u), minor_radius * np.sin(w)], -1).reshape(-1, 3)
+    idx = lambda i, j: (i % m) * n + (j % n)  # noqa: E731
+    aa, bb = a.ravel(), b.ravel()
+    faces = np.stack([idx(aa, bb), idx(aa + 1, bb), idx(aa + 1, bb + 1), idx(aa, bb + 1)], axis=1)
+    intervals = {}
+    if u_intervals is not None:
+        intervals.update({(idx(i, 0), idx(i + 1, 0)): float(d) for i, d in enumerate(u_intervals)})
+    if v_intervals is not None:
+        intervals.update({(idx(0, j), idx(0, j + 1)): float(d) for j, d in enumerate(v_intervals)})
+    return from_arrays(vertices, faces, intervals=intervals, name=name)
+
+
+def open_grid(
+    m: int,
+    n: int,
+    u_intervals: Sequence[float] | None = None,
+    v_intervals: Sequence[float] | None = None,
+    height: float = 0.5,
+    name: str = "grid",
+) -> ControlMesh:
+    """Open m x n vertex grid over [0, m-1] x [0, n-1], a gentle bump in z.
+
+    u_intervals has m-1 entries (strip between columns a and a+1), v_intervals n-1.  Zero outer
+    strips give the clamped NURBS (DESIGN 2)."""
+    a, b = np.meshgrid(np.arange(m, dtype=float), np.arange(n, dtype=float), indexing="ij")
+    z = height * np.sin(np.pi * a / (m - 1)) * np.sin(np.pi * b / (n - 1))
+    vertices = np.stack([a, b, z], -1).reshape(-1, 3)
+    idx = lambda i, j: i * n + j  # noqa: E731
+    aa, bb = np.meshgrid(np.arange(m - 1), np.arange(n - 1), indexing="ij")
+    aa, bb = aa.ravel(), bb.ravel()
+    faces = np.stack([idx(aa, bb), idx(aa + 1, bb), idx(aa + 1, bb + 1), idx(aa, bb + 1)], axis=1)
+    intervals = {}
+    if u_intervals is not None:
+        intervals.update({(idx(i, 0), idx(i + 1, 0)): float(d) for i, d in enumerate(u_intervals)})
+    if v_intervals is not None:
+        intervals.update({(idx(0, j), idx(0, j + 1)): float(d) for j, d in enumerate(v_intervals)})
+    return from_arrays(vertices, faces, intervals=intervals, name=name)
