@@ -1,0 +1,34 @@
+"""Shared fixtures: where the OpenSubdiv shapes live, a CLI runner."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SHAPES = REPO.parent / "shared" / "opensubdiv-shapes"
+NUPATCH = [sys.executable, "-m", "export.cli"]
+
+
+def shape_files(prefix: str = "catmark_") -> list[Path]:
+    """The OpenSubdiv regression shapes, or [] where the folder is absent."""
+    if not SHAPES.is_dir():
+        return []
+    return sorted(SHAPES.glob(f"{prefix}*.obj"))
+
+
+@pytest.fixture
+def run_cli():
+    """Run ``nupatch ARGS`` in a fresh interpreter; returns CompletedProcess (text)."""
+
+    def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        return subprocess.run(
+            [*NUPATCH, *map(str, args)], capture_output=True, text=True, cwd=cwd or REPO, env=env, timeout=600
+        )
+
+    return run
