@@ -19,10 +19,15 @@ def check_output_path(path: str | os.PathLike) -> Path:
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise OutputError("output directory does not exist", str(parent))
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError("output directory is not writable", str(parent))
     if path.is_dir():
         raise OutputError("output path is a directory", str(path))
+    # Probe by creating a file: permission bits do not tell for root or read-only mounts.
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=parent)
+    except OSError as exc:
+        raise OutputError(f"output directory is not writable ({exc.strerror})", str(parent)) from None
+    os.close(fd)
+    os.unlink(probe)
     return path
 
 

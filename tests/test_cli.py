@@ -1,0 +1,169 @@
+"""The command line: every bad input gives exit 2, one stderr line naming the place, no file."""
+
+from pathlib import Path
+
+import pytest
+
+GOOD_QUADS = """v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 2 0 0
+v 2 1 0
+f 1 2 3 4
+f 2 5 6 3
+"""
+
+
+def torus_obj(m: int = 4, n: int = 4, extra: str = "") -> str:
+    lines = [f"v {a} {b} 0" for a in range(m) for b in range(n)]
+    idx = lambda a, b: (a % m) * n + (b % n) + 1  # noqa: E731
+    lines += [f"f {idx(a, b)} {idx(a + 1, b)} {idx(a + 1, b + 1)} {idx(a, b + 1)}" for a in range(m) for b in range(n)]
+    return "\n".join(lines) + "\n" + extra
+
+
+BAD_INPUTS = {
+    # name: (file content, text the message must contain, place it must name)
+    "empty mesh": ("# nothing\n", "empty mesh", "bad.obj"),
+    "vertices only": ("v 0 0 0\nv 1 0 0\n", "empty mesh", "bad.obj"),
+    "unparsable number": ("v 0 0 zero\n", "cannot read coordinate 'zero'", "bad.obj:1"),
+    "face index out of range": (GOOD_QUADS + "f 1 2 9\n", "out of range", "bad.obj:9"),
+    "face index 0": (GOOD_QUADS + "f 0 1 2\n", "face index 0", "bad.obj:9"),
+    "face with two vertices": (GOOD_QUADS + "f 1 2\n", "at least 3", "bad.obj:9"),
+    "repeated vertex": (GOOD_QUADS + "f 1 2 2 4\n", "repeats vertex", "bad.obj:9"),
+    "edge shared by three faces": (GOOD_QUADS + "v 1 0 1\nv 1 1 1\nf 2 7 8 3\n", "shared by 3 faces", "bad.obj:"),
+    "inconsistent orientation": ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 3 6 5\n", "opposite orientations", "bad.obj:8"),
+    "nan coordinate": ("v nan 0 0\n" + GOOD_QUADS, "non-finite coordinate", "bad.obj:1"),
+    "infinite coordinate": ("v 0 inf 0\n" + GOOD_QUADS, "non-finite coordinate", "bad.obj:1"),
+    "negative interval": (torus_obj(extra="t interval 2/1/0 0 1 -1\n"), "must be finite and >= 0", "bad.obj:33"),
+    "nan interval": (torus_obj(extra="t interval 2/1/0 0 1 nan\n"), "must be finite and >= 0", "bad.obj:33"),
+    "infinite interval": (torus_obj(extra="t interval 2/1/0 0 1 inf\n"), "must be finite and >= 0", "bad.obj:33"),
+    "negative sharpness": (torus_obj(extra="t crease 2/1/0 0 1 -2\n"), "must be finite and >= 0", "bad.obj:33"),
+    "nan sharpness": (torus_obj(extra="t crease 2/1/0 0 1 nan\n"), "must be finite and >= 0", "bad.obj:33"),
+    "interval on a missing edge": (torus_obj(extra="t interval 2/1/0 0 5 2\n"), "does not exist", "bad.obj:33"),
+    "crease on a missing edge": (torus_obj(extra="t crease 2/1/0 0 5 2\n"), "does not exist", "bad.obj:33"),
+    "two intervals on one strip": (
+        torus_obj(extra="t interval 2/1/0 0 4 2\nt interval 2/1/0 1 5 3\n"),
+        "edge 0-4 has 2, edge 1-5 has 3",
+        "bad.obj:33 and bad.obj:34",
+    ),
+    "not an obj (binary)": (b"\x89PNG\r\n\x1a\n\0\0\0", "binary", "bad.obj"),
+    "a step file handed to build": ("ISO-10303-21;\nHEADER;\n", "STEP file", "bad.obj"),
+    "text that is not obj": ("hello world\n", "not an OBJ statement", "bad.obj:1"),
+    "tag with missing arguments": (torus_obj(extra="t interval 2/1/0 0\n"), "declares", "bad.obj:33"),
+}
+
+
+def _assert_refused(result, *fragments: str) -> str:
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("nupatch: error: "), lines[0]
+    assert "Traceback" not in result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_is_refused_in_one_line_and_writes_nothing(tmp_path, run_cli, case):
+    content, what, where = BAD_INPUTS[case]
+    mesh = tmp_path / "bad.obj"
+    mesh.write_bytes(content if isinstance(content, bytes) else content.encode())
+    out = tmp_path / "out.step"
+    out.write_text("precious")
+    result = run_cli("build", mesh, "-o", out)
+    _assert_refused(result, what, where)
+    assert out.read_text() == "precious", "an existing output must be untouched"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.obj", "out.step"], "no stray files"
+
+
+def test_default_output_is_not_created_on_failure(tmp_path, run_cli):
+    mesh = tmp_path / "bad.obj"
+    mesh.write_text("v 0 0 zero\n")
+    _assert_refused(run_cli("build", mesh), "bad.obj:1")
+    assert not (tmp_path / "bad.step").exists()
+
+
+def test_missing_file(tmp_path, run_cli):
+    _assert_refused(run_cli("build", tmp_path / "nope.obj"), "no such file", "nope.obj")
+
+
+def test_unreadable_file(tmp_path, run_cli):
+    # Root reads any file whatever its mode, so a directory stands for an unreadable path.
+    folder = tmp_path / "folder.obj"
+    folder.mkdir()
+    _assert_refused(run_cli("build", folder, "-o", tmp_path / "x.step"), "directory", "folder.obj")
+
+
+def test_output_directory_missing(tmp_path, run_cli):
+    mesh = tmp_path / "t.obj"
+    mesh.write_text(torus_obj())
+    result = run_cli("build", mesh, "-o", tmp_path / "no" / "such" / "dir" / "t.step")
+    _assert_refused(result, "does not exist", "no/such/dir")
+
+
+def test_output_directory_not_writable(tmp_path, run_cli):
+    target = Path("/sys")
+    if not target.is_dir():
+        pytest.skip("needs a directory nobody can write into (/sys)")
+    mesh = tmp_path / "t.obj"
+    mesh.write_text(torus_obj())
+    _assert_refused(run_cli("build", mesh, "-o", target / "t.step"), "not writable", "/sys")
+
+
+def test_check_refuses_an_obj(tmp_path, run_cli):
+    mesh = tmp_path / "t.obj"
+    mesh.write_text(torus_obj())
+    _assert_refused(run_cli("check", mesh), "not a STEP file", "t.obj")
+
+
+def test_unsupported_features_are_refused_not_built_wrong(tmp_path, run_cli):
+    mesh = tmp_path / "t.obj"
+    mesh.write_text(torus_obj(extra="t crease 2/1/0 0 1 10\n"))
+    out = tmp_path / "t.step"
+    _assert_refused(run_cli("build", mesh, "-o", out), "not supported yet", "t.obj:33")
+    assert not out.exists()
+
+
+def test_isolated_vertex_and_unknown_tag_warn_and_go_on(tmp_path, run_cli):
+    mesh = tmp_path / "t.obj"
+    mesh.write_text(torus_obj(extra="v 9 9 9\nt smoothtriangles 0/0/1 yes\n"))
+    out = tmp_path / "t.step"
+    result = run_cli("build", mesh, "-o", out, "-q")
+    assert result.returncode == 0, result.stderr
+    warnings = [l for l in result.stderr.splitlines() if l.startswith("nupatch: warning:")]
+    assert any("isolated" in w for w in warnings) and any("smoothtriangles" in w for w in warnings)
+    assert out.exists()
+
+
+def test_build_info_check_and_version(tmp_path, run_cli):
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(6, 5, extra="t interval 2/1/0 0 5 3\n"))
+    result = run_cli("build", mesh)
+    assert result.returncode == 0, result.stderr
+    step = tmp_path / "ring.step"
+    text = step.read_text()
+    assert "ring" in text and "MILLI" in text
+    check = run_cli("check", step, "--json")
+    assert check.returncode == 0, check.stderr
+    import json
+
+    report = json.loads(check.stdout)
+    assert report["valid"] and report["n_solids"] == 1 and report["n_free_edges"] == 0
+    info = run_cli("info", mesh)
+    assert info.returncode == 0 and "30 vertices, 30 faces" in info.stdout
+    assert run_cli("--version").stdout.startswith("nupatch ")
+    for command in ("build", "info", "check"):
+        assert run_cli(command, "--help").returncode == 0
+
+
+def test_building_twice_gives_the_same_step_but_the_timestamp(tmp_path, run_cli):
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(5, 4))
+    a, b = tmp_path / "a.step", tmp_path / "b.step"
+    assert run_cli("build", mesh, "-o", a, "-q").returncode == 0
+    assert run_cli("build", mesh, "-o", b, "-q").returncode == 0
+    strip = lambda p: [l for l in p.read_text().splitlines() if not l.startswith("FILE_NAME")]  # noqa: E731
+    assert strip(a) == strip(b)
+    assert a.read_text() != "" and len(strip(a)) > 50
