@@ -35,8 +35,9 @@ def test_write_then_read_gives_the_same_solid(tmp_path, cube_shape):
     shape = read_step(path)
     assert count(shape, TopAbs_SOLID) == 1 and count(shape, TopAbs_FACE) == 6
     assert BRepCheck_Analyzer(shape).IsValid()
-    # STEP stores reals with 15-17 significant digits: the volume survives to round-off.
-    assert volume(shape) == pytest.approx(1.0, abs=1e-13)
+    # OCC writes reals with 13 significant digits, which moves poles within their face's
+    # plane (e.g. 1/3) and may open 1e-13 slits between a cubic face and a quintic one.
+    assert volume(shape) == pytest.approx(1.0, abs=1e-12)
 
 
 def test_product_name_and_millimetres_are_in_the_file(tmp_path, cube_shape):
