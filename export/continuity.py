@@ -151,8 +151,8 @@ def _sample_edge(edge, face1, face2, samples: int, tol: float) -> np.ndarray:
     curve = BRepAdaptor_Curve(edge)
     first, last = curve.FirstParameter(), curve.LastParameter()
     same = BRep_Tool.SameParameter_s(edge)
-    side1 = _FaceSide(edge if face1[1] is None else edge.Oriented(face1[1]), face1[0], same, tol)
-    side2 = _FaceSide(edge if face2[1] is None else edge.Oriented(face2[1]), face2[0], same, tol)
+    side1 = _FaceSide(edge if face1[1] is None else TopoDS.Edge_s(edge.Oriented(face1[1])), face1[0], same, tol)
+    side2 = _FaceSide(edge if face2[1] is None else TopoDS.Edge_s(edge.Oriented(face2[1])), face2[0], same, tol)
     out = np.empty((samples, 2, 2, 3))
     for k, w in enumerate(np.linspace(first, last, samples)):
         w = float(w)

@@ -123,6 +123,18 @@ def single_patch(degree: int = 3) -> BezierSurface:
     return surface([[0, 1, 2, 3]], [net], name="patch")
 
 
+def seam_tube() -> BezierSurface:
+    """One bi-quintic patch closed on itself in s: its sides 1 and 3 are one (seam) edge.
+
+    The s-rows follow a C1 closed quintic loop (P5 = P0, P5 - P4 = P1 - P0); corners 0, 1
+    are one vertex and so are 2, 3, so sides 0 and 2 are closed edges.
+    """
+    loop = np.array([[0, 0], [1, 0], [2, 2], [-2, 2], [-1, 0], [0, 0]], float)
+    height = np.linspace(0.0, 1.0, 6)
+    net = np.stack(np.broadcast_arrays(loop[:, None, 0], loop[:, None, 1], height[None, :]), axis=-1)
+    return surface([[0, 0, 1, 1]], [net], name="tube")
+
+
 def volume(shape) -> float:
     props = GProp_GProps()
     BRepGProp.VolumeProperties_s(shape, props)
@@ -198,6 +210,29 @@ def test_single_open_patch_gives_a_shell():
     assert shape.ShapeType() == TopAbs_SHELL
     assert BRepCheck_Analyzer(shape).IsValid()
     assert (count(shape, TopAbs_FACE), count(shape, TopAbs_EDGE), count(shape, TopAbs_VERTEX)) == (1, 4, 4)
+
+
+def test_patch_closed_on_itself_gets_a_seam_edge():
+    surf = seam_tube()
+    assert surf.topology.side_edge[0, 1] == surf.topology.side_edge[0, 3]
+    shape = to_shape(surf)
+    assert shape.ShapeType() == TopAbs_SHELL
+    assert BRepCheck_Analyzer(shape).IsValid()
+    assert (count(shape, TopAbs_FACE), count(shape, TopAbs_EDGE), count(shape, TopAbs_VERTEX)) == (1, 3, 2)
+    face = _face(shape)
+    assert sum(BRep_Tool.IsClosed_s(e, face) for e in _edges(shape)) == 1  # two pcurves on the face
+
+
+def _edges(shape):
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, found)
+    return [TopoDS.Edge_s(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
+
+
+def _face(shape):
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, found)
+    return TopoDS.Face_s(found.FindKey(1))
 
 
 @pytest.mark.parametrize("degrees", [None, [3, 5] * 24], ids=["bicubic", "mixed"])

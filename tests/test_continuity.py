@@ -14,9 +14,9 @@ from export.continuity import ContinuityReport, check_continuity
 from export.step import write_step
 
 try:
-    from test_brep import cube, single_patch, torus
-except ImportError:  # tests collected as a package
-    from tests.test_brep import cube, single_patch, torus
+    from tests.test_brep import cube, seam_tube, single_patch, torus
+except ImportError:  # tests/ on sys.path rather than a package
+    from test_brep import cube, seam_tube, single_patch, torus
 
 # Normals of C1 neighbours agree to round-off: unit normals from derivatives of size ~10
 # computed to ~1e-15 relative give angles of a few 1e-15 rad (measured 4e-15 rad = 2.5e-13
@@ -98,6 +98,15 @@ def test_moved_boundary_row_gives_a_gap():
     assert report.max_gap == pytest.approx(0.75 * delta, abs=1e-14)
     by_gap = max(report.worst_edges, key=lambda d: d.gap)
     assert tuple(sorted(by_gap.faces)) == neighbour(surf, row, 0)
+
+
+def test_seam_of_a_smooth_tube_is_compared_across_itself():
+    report = check_continuity(to_shape(seam_tube()))
+    assert report.valid
+    assert (report.n_faces, report.n_edges, report.n_shared_edges, report.n_free_edges) == (1, 3, 1, 2)
+    # The loop is C1 with equal end derivatives: both sides of the seam agree to round-off.
+    assert report.max_gap_relative < ROUND_OFF_GAP
+    assert report.max_normal_jump_deg < ROUND_OFF_DEG
 
 
 def test_separate_faces_have_free_edges():

@@ -17,9 +17,9 @@ from export.step import StepError, read_step, write_step
 from patching.errors import InputFileError, NupatchError, OutputError
 
 try:
-    from test_brep import count, cube, torus, volume
-except ImportError:  # tests collected as a package
     from tests.test_brep import count, cube, torus, volume
+except ImportError:  # tests/ on sys.path rather than a package
+    from test_brep import count, cube, torus, volume
 
 FILE_NAME = re.compile(r"FILE_NAME\(.*?\);", re.DOTALL)
 
