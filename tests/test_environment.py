@@ -21,6 +21,6 @@ def test_cadquery_and_build123d_share_one_ocp():
     box_bd = build123d.Box(1, 2, 3).wrapped
     # Same classes, so shapes pass freely between the two libraries and nupatch's export.
     assert isinstance(box_cq, OCP.TopoDS.TopoDS_Shape) and isinstance(box_bd, OCP.TopoDS.TopoDS_Shape)
-    assert box_cq.ShapeType() == box_bd.ShapeType()
+    assert type(box_cq).__module__ == type(box_bd).__module__  # one OCP extension module
     assert cadquery.Shape.cast(box_bd).isValid()
     assert md.version("cadquery-ocp").startswith("7.9.3")
