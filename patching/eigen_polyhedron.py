@@ -1,0 +1,667 @@
+"""Local eigen-polyhedron rules of non-uniform Catmull-Clark subdivision around one vertex.
+
+Weights only: no mesh, no positions (STYLE 1, OpenSubdiv's ``sdc/``).  The rules are those of
+Li, Finnigan and Sederberg 2016 ("G1 non-uniform Catmull-Clark surfaces", seed 002's [19],
+seed 000's [LFS16]) as restated in seed 002's Appendix (eqs. 11, 12 and the edge rule) and
+explained in seed 000 section 3 (the technique) and section 4.3 (the vertex rule written
+cleanly).  Seed 001 changes only the angles of the eigen-polyhedron (``angles="modified"``).
+
+Point ordering, written once (STYLE 9)
+--------------------------------------
+A vertex ``V`` of valence ``n`` with spoke edges ``V-E_i`` (knot interval ``d_i``) and faces
+``i = (V, E_i, F_i, E_{i+1})`` counter-clockwise.  The local points are ordered
+
+    index   0    1 .. n          n+1 .. 2n
+    point   V    E_0 .. E_{n-1}  F_0 .. F_{n-1}
+
+(``VERTEX``, ``edge_index(n, i)``, ``face_index(n, i)``).  Drawn for n = 4, any n continues
+counter-clockwise in the same way:
+
+        F_1 ------ d_0 ------ E_1 ------ d_0 ------ F_0
+         |                     |                     |
+         |                     |                     |
+        d_1      face 1       d_1      face 0       d_1
+         |                     |                     |
+         |                     |                     |
+        E_2 ------ d_2 ------- V ------- d_0 ------ E_0
+         |                     |                     |
+         |                     |                     |
+        d_3      face 2       d_3      face 3       d_3
+         |                     |                     |
+         |                     |                     |
+        F_2 ------ d_2 ------ E_3 ------ d_2 ------ F_3
+
+In face ``i`` the edge ``E_i-F_i`` is opposite spoke ``i+1`` and carries ``d_{i+1}``; the edge
+``E_{i+1}-F_i`` is opposite spoke ``i`` and carries ``d_i`` (opposite quad edges share an
+interval, DESIGN 2).  So the 1-ring carries only the spoke intervals.
+
+Is the 1-ring closed under the rule?  Yes: every rule below reads ``V``, ``E_j``, ``F_j`` and
+the spoke intervals ``d_j`` only, so one step is a (2n+1) x (2n+1) matrix.  The rule *assumes*
+that the edge continuing spoke ``i`` beyond ``E_i`` (seed 002's ``a_i``, Fig. 11) also carries
+``d_i`` (seed 000 Fig. 8: "d-bar_i = d-tilde_i = d_i").  After one refinement step this always
+holds (both halves of a split spoke carry ``d_i / 2``), which is what makes the matrix
+stationary; on a level-0 mesh with ``a_i != d_i`` a valence-4 vertex is *not* exact NURBS knot
+insertion under these rules.  The ``a_i`` enter only seed 002's Bézier-extraction face points
+(section 3.5 step 1), not this module.
+
+The construction (seed 000 section 3; seed 002 Appendix)
+--------------------------------------------------------
+1. Eigen-polyhedron in R^2: ``V^ = (0, 0)``, ``E^_i = l_i (cos phi_i, sin phi_i)``,
+   ``F^_i = gamma (E^_i + E^_{i+1})`` with ``phi_i = 2 pi i / n`` (standard) or the partial sums
+   of seed 001's angles (modified), ``c = cos(2 pi / n)``,
+   ``gamma = 4 / (c + 1 + sqrt((c + 9)(c + 1)))`` and ``lambda = (1 + gamma) / (4 gamma)``
+   (Catmull-Clark's subdominant eigenvalue, the same for both angle choices, seed 001 eq. 14).
+2. The vertex rule (fixed, eq. 11) gives ``T = V^1`` on the eigen-polyhedron.
+3. The face and edge rules are bilinear in two unknown coefficients each; they are solved so
+   that the refined eigen-polyhedron is ``lambda P^0 + 1 T`` (a scale and a translation).  Then
+   the two columns of ``P^0 - 1 T / (1 - lambda)`` are right eigenvectors of the matrix with
+   eigenvalue ``lambda``: the double subdominant eigenvalue that G1 needs (seed 000 section 3).
+
+Reconstructions (the seed texts are PDF extractions; see each function for details)
+-----------------------------------------------------------------------------------
+* The spoke lengths ``l_i``: seed 002 prints ``l_i = (2 d_i + d_i^-) / 3`` with a garbled
+  rational ``d_i^-``; seeds 000/001 give [LFS16]'s Fourier-type formula.  Both are implemented
+  (``lengths=``); the seed 000 form is the default because the reconstructed appendix form
+  loses the double subdominant eigenvalue at ratios >= 10.  See :func:`spoke_lengths`.
+* ``M_i`` and ``F_i`` in eq. (11) (``M_i`` undefined in seed 002): they are seed 000's ``H_i``
+  and ``G_i`` (section 4.3.1, eqs. 6-7): see :func:`vertex_rule_weights`.
+* The bilinear solves (seed 000 eqs. 20-21, seed 001 after eq. 17, both partly garbled): solved
+  here in closed form from first principles, see :func:`_bilinear_inverse`.
+* Seed 001's angle rule: its case "(2) n != 3" is "(2) n = 3", see :func:`eigen_angles`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "VERTEX",
+    "edge_index",
+    "face_index",
+    "characteristic_scale",
+    "eigen_angles",
+    "spoke_lengths",
+    "eigen_polyhedron",
+    "vertex_rule_weights",
+    "local_subdivision_matrix",
+    "rule_coefficients",
+    "subdivision_eigenvalues",
+    "limit_point_weights",
+    "tangent_weights",
+    "tangent_projector",
+]
+
+#: Index of the centre vertex in the local ordering [V, E_0..E_{n-1}, F_0..F_{n-1}].
+VERTEX = 0
+
+ANGLE_CHOICES = ("standard", "modified")
+LENGTH_CHOICES = ("appendix", "fourier")
+
+# Significant digits kept in the cache key: two interval lists that agree to 14 digits (after
+# scaling by their maximum; every rule is invariant under d -> s d) share one solution.
+_KEY_DIGITS = 14
+# A bilinear coefficient counts as inside [0, 1] with this slack (round-off of the 2x2 solve).
+_RANGE_SLACK = 1e-10
+
+
+def edge_index(valence: int, i: int) -> int:
+    """Local index of ``E_i`` (``i`` taken modulo the valence)."""
+    return 1 + i % valence
+
+
+def face_index(valence: int, i: int) -> int:
+    """Local index of ``F_i``, the far corner of face ``(V, E_i, F_i, E_{i+1})``."""
+    return 1 + valence + i % valence
+
+
+class CharacteristicScale(NamedTuple):
+    """``gamma`` (face-point factor of the eigen-polyhedron) and ``lam`` (its scale factor)."""
+
+    gamma: float
+    lam: float
+
+
+def characteristic_scale(valence: int) -> CharacteristicScale:
+    """Catmull-Clark's ``gamma`` and subdominant eigenvalue ``lambda`` for valence ``n``.
+
+    ``c = cos(2 pi / n)``, ``gamma = 4 / (c + 1 + sqrt((c + 9)(c + 1)))``,
+    ``lambda = (1 + gamma) / (4 gamma) = (5 + c + sqrt((c + 9)(c + 1))) / 16``
+    (seed 002 Appendix; seed 000 eq. 1 and section 4.1 step 2).  Valence 4 gives
+    ``gamma = 1, lambda = 1/2`` (bicubic B-spline midpoint refinement).
+    """
+    c = math.cos(2.0 * math.pi / valence)
+    gamma = 4.0 / (c + 1.0 + math.sqrt((c + 9.0) * (c + 1.0)))
+    return CharacteristicScale(gamma, (1.0 + gamma) / (4.0 * gamma))
+
+
+# --------------------------------------------------------------------------------------------
+# Input checking and the cache key
+
+
+def _as_intervals(intervals) -> np.ndarray:
+    d = np.asarray(intervals, dtype=np.float64)
+    if d.ndim != 1 or d.size < 3:
+        raise ValueError(
+            f"spoke intervals: need a 1-D list of at least 3 knot intervals, got shape {d.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(d) | (d <= 0.0))
+    if bad.size:
+        raise ValueError(
+            f"spoke intervals: the eigen-polyhedron rules need finite positive intervals on "
+            f"every spoke; spoke {int(bad[0])} has {d[bad[0]]!r} (intervals {d.tolist()})"
+        )
+    return d
+
+
+def _key(intervals) -> tuple[tuple[float, ...], float]:
+    """(cache key, scale): intervals divided by their maximum ``scale`` and rounded."""
+    d = _as_intervals(intervals)
+    scale = float(d.max())
+    return tuple(float(f"{x:.{_KEY_DIGITS}g}") for x in d / scale), scale
+
+
+def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ValueError(f"{name}={value!r}: expected one of {', '.join(map(repr, choices))}")
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+# --------------------------------------------------------------------------------------------
+# 1. The eigen-polyhedron
+
+
+def eigen_angles(intervals, angles: str = "standard") -> np.ndarray:
+    """Angles ``theta_i`` between ``E^_i`` and ``E^_{i+1}`` of the eigen-polyhedron, (n,) float64.
+
+    ``"standard"``: ``2 pi / n`` each ([LFS16], seed 002 Appendix).
+
+    ``"modified"``: seed 001, "Modified eigenpolyhedron", eq. (10) and the case analysis after
+    it.  With ``k_i = n d_i d_{i+1} / sum_j d_j d_{j+1}``::
+
+        theta_i^pre = pi/2 - (2 - 8/n) arctan(k_i)                    if k_i < 1
+                    = (4/n - 1/2) pi + (2 - 8/n) arctan((1 + k_i)/2)  if k_i >= 1
+
+    (``2 pi / n`` at ``k_i = 1``, tending to ``pi / 2`` when a sector's intervals are relatively
+    tiny or huge), then rescaled to sum to ``2 pi``:
+
+    * n = 3: all angles scaled by ``2 pi / sum``.  Reconstruction: the text prints the case
+      heading "(2) n != 3" twice; the second must be "n = 3", since for n = 3 the pre-angles lie
+      in ``[pi/2, 2 pi/3]`` and "the sum ... is no greater than 2 pi", as the text says.
+    * n != 3 and ``theta_max N_max < 2 pi``: the maximal angles are kept, the others are scaled
+      so that the sum is ``2 pi``.
+    * n != 3, ``theta_max N_max >= 2 pi`` and all angles maximal: all scaled by ``2 pi / sum``.
+    * n != 3, ``theta_max N_max >= 2 pi``, ``N_max < n``: with ``N = max(N_max, n - N_max)`` the
+      maximal angles share ``2 pi N / n`` and the others ``2 pi (n - N) / n``, each group
+      scaled proportionally (the printed factors; they sum to ``2 pi``).
+
+    "Maximal" uses a relative tolerance of 1e-12 (the text compares for equality).  Valence 4
+    gives ``pi / 2`` each for any intervals, uniform intervals ``2 pi / n``: the two reductions
+    that keep NURBS and Catmull-Clark.
+    """
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    d = _as_intervals(intervals)
+    n = d.size
+    if angles == "standard":
+        return np.full(n, 2.0 * math.pi / n)
+    prod = d * np.roll(d, -1)
+    k = n * prod / prod.sum()
+    w = 2.0 - 8.0 / n
+    pre = np.where(
+        k < 1.0,
+        0.5 * math.pi - w * np.arctan(k),
+        (4.0 / n - 0.5) * math.pi + w * np.arctan(0.5 * (1.0 + k)),
+    )
+    total = pre.sum()
+    tmax = pre.max()
+    is_max = pre >= tmax * (1.0 - 1e-12)
+    n_max = int(is_max.sum())
+    if n == 3 or n_max == n:
+        return pre * (2.0 * math.pi / total)
+    if tmax * n_max < 2.0 * math.pi:
+        rest = total - tmax * n_max
+        return np.where(is_max, pre, pre * (2.0 * math.pi - tmax * n_max) / rest)
+    half = max(n_max, n - n_max)
+    rest = total - tmax * n_max
+    return np.where(
+        is_max,
+        pre * (2.0 * math.pi * half / (n * tmax * n_max)),
+        pre * (2.0 * math.pi * (n - half) / (n * rest)),
+    )
+
+
+def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
+    """Lengths ``l_i = |E^_i - V^|`` of the eigen-polyhedron's spokes, (n,) float64.
+
+    ``"fourier"`` (default; seed 000 eq. 5 and seed 001 eq. 11, both giving it as the length
+    formula of [LFS16]): ``l_i = (d_i + d_i^+ + d_i^-) / 3`` with::
+
+        d_i^+ =  sum_{|i-j| <= n/4} d_j cos(2 pi (i-j) / n)
+        d_i^- = -sum_{|i-j| >  n/4} d_j cos(2 pi (i-j) / n)
+
+    ``|i-j|`` the cyclic distance (the sums run over ``j = i .. i+n-1``).  Reconstruction: seed
+    001 prints ``d_i^-`` without the minus sign; with it ``l_i = (d_i + sum_j d_j
+    |cos(2 pi (i-j)/n)|) / 3 > 0``, and valence 4 gives ``(2 d_i + d_{i+2}) / 3``, the Greville
+    distance of the bicubic B-spline (seed 001 eq. 8); without it valence 4 would give
+    ``(2 d_i - d_{i+2}) / 3``.
+
+    ``"appendix"`` (seed 002 Appendix as printed, reconstructed): ``l_i = (2 d_i + d_i^-) / 3``::
+
+        d_i^- = (d_{i-2} d_{i+1} + d_{i+2} d_{i-1}) / (d_{i-1} + d_{i+1})
+
+    The text prints ``(d_{i-2} d_{i+1} + d_{i+1}) / (d_{i-1} + d_{i+1})``, whose numerator has
+    lost a factor and is not homogeneous.  Kept: the intact term ``d_{i-2} d_{i+1}`` and the
+    denominator; restored: the mirror term ``d_{i+2} d_{i-1}`` (a weighted mean of the intervals
+    two spokes away, invariant under reversing the orientation).  It passes the two checks the
+    seeds ask for (valence 4: ``d_i^- = d_{i+2}``, exact knot insertion; uniform: equal
+    lengths) but NOT the eigenvalue check at larger ratios: for n >= 5 and spoke ratios >= 10 a
+    few percent of random configurations get a fourth eigenvalue >= lambda, while
+    ``"fourier"`` passed every configuration tried (n = 3..16, ratios up to 1e4;
+    ``benchmarks/eigen.py``).  The same holds for the other readings tried (the straight
+    weights ``d_{i-2} d_{i-1} + d_{i+2} d_{i+1}``, and ``(2 d_i + d_i^-)/3`` with seed 000's
+    ``d_i^-``).  So the printed appendix form is most likely a damaged or simplified copy and
+    the Fourier form is [LFS16]'s; "appendix" is kept only to document that finding.
+
+    Both choices agree for valence 4 and, up to a common scale (which does not change the
+    rules), for uniform intervals.
+    """
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    d = _as_intervals(intervals)
+    n = d.size
+    if lengths == "appendix":
+        dm1, dp1 = np.roll(d, 1), np.roll(d, -1)
+        dm2, dp2 = np.roll(d, 2), np.roll(d, -2)
+        d_minus = (dm2 * dp1 + dp2 * dm1) / (dm1 + dp1)
+        return (2.0 * d + d_minus) / 3.0
+    i = np.arange(n)
+    k = (i[None, :] - i[:, None]) % n  # j - i modulo n
+    dist = np.minimum(k, n - k)
+    cos = np.cos(2.0 * math.pi * k / n)
+    near = dist <= n / 4.0
+    d_plus = np.where(near, cos, 0.0) @ d
+    d_minus = -np.where(near, 0.0, cos) @ d
+    return (d + d_plus + d_minus) / 3.0
+
+
+def eigen_polyhedron(intervals, angles: str = "standard", lengths: str = "fourier") -> np.ndarray:
+    """The eigen-polyhedron ``P^0``: (2n+1, 2) float64 in the order [V, E_0.., F_0..].
+
+    ``V^ = (0, 0)``, ``E^_i = l_i (cos phi_i, sin phi_i)`` with ``phi_0 = 0``,
+    ``phi_i = theta_0 + ... + theta_{i-1}`` (:func:`eigen_angles`; ``2 pi i / n`` for the
+    standard angles), ``F^_i = gamma (E^_i + E^_{i+1})`` (seed 002 Appendix; seed 001 eqs. 12-13).
+    """
+    d = _as_intervals(intervals)
+    n = d.size
+    theta = eigen_angles(d, angles)
+    phi = np.concatenate([[0.0], np.cumsum(theta)[:-1]])
+    ell = spoke_lengths(d, lengths)
+    e = ell[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    f = characteristic_scale(n).gamma * (e + np.roll(e, -1, axis=0))
+    return np.concatenate([np.zeros((1, 2)), e, f])
+
+
+# --------------------------------------------------------------------------------------------
+# 2. The vertex rule
+
+
+def vertex_rule_weights(intervals) -> np.ndarray:
+    """Weights of the new vertex point on [V, E_0.., F_0..], (2n+1,) float64 (seed 002 eq. 11).
+
+    ``V' = (n-3)/n V + 3/n sum_i (m_i H_i + f_i G_i) / sum_i (m_i + f_i)`` with
+    ``f_i = d_{i-1} d_{i+2}``, ``m_i = f_i + f_{i-1}`` and::
+
+        g_i = (d_{i-2} + d_i + d_{i+2}) / (d_{i-2} + 4 d_i + d_{i+2})
+        H_i = (1 - g_i) V + g_i E_i
+        G_i = (1-g_i)(1-g_{i+1}) V + g_i (1-g_{i+1}) E_i + (1-g_i) g_{i+1} E_{i+1} + g_i g_{i+1} F_i
+
+    Reconstruction: seed 002 writes ``m_i M_i + f_i F-bar_i`` and never defines ``M_i``; seed 000
+    section 4.3.1 (eqs. 6-7) writes the same rule of [LFS16] as ``m_i H_i + f_i G_i``, and seed
+    001 eq. (15) repeats it.  So ``M_i = H_i`` (the point on spoke ``i`` where the cubic
+    B-spline puts its new edge point when the next interval along the spoke equals ``d_i``) and
+    the face term is ``G_i``, a fixed bilinear point of face ``i``, not the eigen-solved new face
+    point (with the latter the rule would also be well defined, but it would be implicit; every
+    seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in seed 001 (``E_{i+1}``
+    twice); seed 000 eq. (7) has the form above.  ``f_i``: seed 002 gives ``d_{i-1} d_{i+2}`` (the
+    same weights as its eq. 3); seeds 000/001 print a garbled product over ``j != i, i+1``, which
+    equals ``d_{i-1} d_{i+2}`` for valence 4.  The seed 002 form is used.
+    Checks (tests): uniform intervals give Catmull-Clark's ``(n-2)/n V + (sum E + sum F)/n^2``;
+    valence 4 gives the tensor product of cubic B-spline vertex rules (knot insertion).
+    """
+    d = _as_intervals(intervals)
+    n = d.size
+    dm2, dp2, dm1 = np.roll(d, 2), np.roll(d, -2), np.roll(d, 1)
+    g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)
+    gn = np.roll(g, -1)
+    f = dm1 * dp2
+    m = f + np.roll(f, 1)
+    scale = 3.0 / (n * (m.sum() + f.sum()))
+    w = np.zeros(2 * n + 1)
+    w[VERTEX] = (n - 3.0) / n
+    e_idx = 1 + np.arange(n)
+    en_idx = 1 + (np.arange(n) + 1) % n
+    f_idx = 1 + n + np.arange(n)
+    # m_i H_i
+    w[VERTEX] += scale * np.sum(m * (1.0 - g))
+    np.add.at(w, e_idx, scale * m * g)
+    # f_i G_i
+    w[VERTEX] += scale * np.sum(f * (1.0 - g) * (1.0 - gn))
+    np.add.at(w, e_idx, scale * f * g * (1.0 - gn))
+    np.add.at(w, en_idx, scale * f * (1.0 - g) * gn)
+    np.add.at(w, f_idx, scale * f * g * gn)
+    return w
+
+
+# --------------------------------------------------------------------------------------------
+# 3. Face and edge rules: bilinear solves on the eigen-polyhedron
+
+
+def _cross(u, v) -> float:
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
+def _bilinear_roots(p00, p10, p01, p11, x) -> list[tuple[float, float]]:
+    """All real (s, t) with ``(1-s)(1-t) p00 + s(1-t) p10 + (1-s) t p01 + s t p11 = x``.
+
+    Writing the map as ``p00 + s b + t c + s t e`` and ``r = x - p00``, ``r - t c = s (b + t e)``,
+    so ``cross(r - t c, b + t e) = 0``: the quadratic
+    ``-cross(c, e) t^2 + (cross(r, e) - cross(c, b)) t + cross(r, b) = 0`` (the closed form that
+    seed 000 eqs. 20-21 and seed 001 write with signed areas, after Floater 2015; their printed
+    versions are partly garbled, so it is derived here afresh).  The roots are taken in the
+    cancellation-free form, ``s`` from the larger component of ``b + t e``, and each pair is
+    polished by two Newton steps on the 2x2 system.
+    """
+    p00, p10, p01, p11, x = (np.asarray(p, dtype=np.float64) for p in (p00, p10, p01, p11, x))
+    b, c, e, r = p10 - p00, p01 - p00, p00 - p10 - p01 + p11, x - p00
+    qa, qb, qc = -_cross(c, e), _cross(r, e) - _cross(c, b), _cross(r, b)
+    ts: list[float] = []
+    disc = qb * qb - 4.0 * qa * qc
+    if disc < 0.0:
+        # Complex pair; a tiny negative value is round-off of a double root.
+        if disc < -1e-24 * (qb * qb + abs(4.0 * qa * qc)):
+            return []
+        disc = 0.0
+    q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
+    if q != 0.0:
+        ts.append(qc / q)
+    if qa != 0.0:
+        ts.append(q / qa)
+    if not ts and qc == 0.0:
+        ts.append(0.0)
+    size = max(np.abs(b).max(), np.abs(c).max(), np.abs(e).max(), np.abs(r).max())
+    out = []
+    for t in ts:
+        den = b + t * e
+        k = int(np.argmax(np.abs(den)))
+        if not np.isfinite(t) or abs(den[k]) <= 1e-12 * size:
+            # b + t e = 0: the iso-line t collapses to a point, s is undetermined; it is a
+            # solution only if that point is x, which the other root then also finds.
+            continue
+        s = (r[k] - t * c[k]) / den[k]
+        for _ in range(2):  # Newton polish
+            res = p00 + s * b + t * c + s * t * e - x
+            jac = np.column_stack([b + t * e, c + s * e])
+            try:
+                step = np.linalg.solve(jac, res)
+            except np.linalg.LinAlgError:
+                break
+            s, t = s - step[0], t - step[1]
+        res = p00 + s * b + t * c + s * t * e - x
+        if np.abs(res).max() <= 1e-10 * size * (1.0 + abs(s) + abs(t) + abs(s * t)):
+            out.append((float(s), float(t)))
+    return out
+
+
+def _bilinear_inverse(p00, p10, p01, p11, x, where: str) -> tuple[float, float]:
+    """The solution (s, t) of the bilinear equation on the branch through the unit square.
+
+    The quadratic of :func:`_bilinear_roots` has at most two real roots.  For a convex quad and
+    ``x`` inside it exactly one lies in ``[0, 1]^2`` (the rule is then a convex combination, as
+    in the uniform and the valence-4 cases).  For large interval ratios the target point of
+    the eigen-polyhedron can leave the quad slightly (seen for the edge rule: the coefficient
+    along the spoke becomes a little negative); the seeds call the solution "unique" without
+    restricting its range, so the root nearest to the unit square is taken: it is the branch
+    that continues the in-square solution, the other root lies far away (|s| or |t| ~ 3 to
+    100 in the cases seen).  Raises if no real root exists or if both roots lie in the square.
+    """
+    roots = _bilinear_roots(p00, p10, p01, p11, x)
+    if not roots:
+        raise ValueError(f"eigen-polyhedron {where}: the bilinear equation has no real solution")
+
+    def distance(st):
+        return math.hypot(max(-st[0], 0.0, st[0] - 1.0), max(-st[1], 0.0, st[1] - 1.0))
+
+    roots.sort(key=distance)
+    if len(roots) == 2 and distance(roots[1]) <= _RANGE_SLACK:
+        raise ValueError(
+            f"eigen-polyhedron {where}: two solutions of the bilinear equation in [0, 1]^2 "
+            f"({roots}): the quad of the rule folds over"
+        )
+    s, t = roots[0]
+    if distance(roots[0]) <= _RANGE_SLACK:  # clip round-off only
+        s, t = min(max(s, 0.0), 1.0), min(max(t, 0.0), 1.0)
+    return s, t
+
+
+class RuleCoefficients(NamedTuple):
+    """Coefficients of the local rules (all float64).
+
+    ``alpha``: (n, 2), face ``i``: weight ``alpha[i, 0]`` towards ``E_i`` and ``alpha[i, 1]``
+    towards ``E_{i+1}`` (seed 002 eq. 12).  ``beta``: (n, 2), edge ``i``: ``beta[i, 0]`` across
+    (towards the ``E_{i+1}`` side), ``beta[i, 1]`` along the spoke (towards ``E_i``).
+    ``translation``: (2,), ``T = V^1`` on the eigen-polyhedron.  ``lam``: the scale.
+    """
+
+    alpha: np.ndarray
+    beta: np.ndarray
+    translation: np.ndarray
+    lam: float
+
+
+def _unit(size: int, index: int) -> np.ndarray:
+    w = np.zeros(size)
+    w[index] = 1.0
+    return w
+
+
+@functools.lru_cache(maxsize=4096)
+def _solve(key: tuple[float, ...], angles: str, lengths: str):
+    d = np.array(key)
+    n = d.size
+    size = 2 * n + 1
+    lam = characteristic_scale(n).lam
+    p0 = eigen_polyhedron(d, angles, lengths)
+    mat = np.zeros((size, size))
+    mat[VERTEX] = vertex_rule_weights(d)
+    t_vec = mat[VERTEX] @ p0  # T = V^1 (V^0 = 0)
+    V = VERTEX
+    E = [edge_index(n, i) for i in range(n)]
+    F = [face_index(n, i) for i in range(n)]
+
+    # Face points, seed 002 eq. (12): bilinear in (alpha_1 -> E_i, alpha_2 -> E_{i+1}) with
+    # target V^1 + lambda F^_i.
+    alpha = np.zeros((n, 2))
+    for i in range(n):
+        j = (i + 1) % n
+        a1, a2 = _bilinear_inverse(
+            p0[V], p0[E[i]], p0[E[j]], p0[F[i]], t_vec + lam * p0[F[i]], f"face {i}"
+        )
+        alpha[i] = a1, a2
+        mat[F[i], V] = (1 - a1) * (1 - a2)
+        mat[F[i], E[i]] = a1 * (1 - a2)
+        mat[F[i], E[j]] = (1 - a1) * a2
+        mat[F[i], F[i]] = a1 * a2
+
+    # Edge points, seed 002 Appendix (seed 000 eqs. 23-28): bilinear in (beta_1 across,
+    # beta_2 along) on the quad of (P_{i,1}+V)/2, (P_{i,2}+V)/2, (P_{i,3}+E_i)/2, (P_{i,4}+E_i)/2.
+    beta = np.zeros((n, 2))
+    for i in range(n):
+        h, j = (i - 1) % n, (i + 1) % n
+        ah, ai = alpha[h, 0], alpha[i, 1]
+        p1 = (1 - ah) * _unit(size, V) + ah * _unit(size, E[h])
+        p2 = (1 - ai) * _unit(size, V) + ai * _unit(size, E[j])
+        p3 = (1 - ah) * _unit(size, E[i]) + ah * _unit(size, F[h])
+        p4 = (1 - ai) * _unit(size, E[i]) + ai * _unit(size, F[i])
+        q1 = 0.5 * (p1 + _unit(size, V))
+        q2 = 0.5 * (p2 + _unit(size, V))
+        q3 = 0.5 * (p3 + _unit(size, E[i]))
+        q4 = 0.5 * (p4 + _unit(size, E[i]))
+        b1, b2 = _bilinear_inverse(
+            q1 @ p0, q2 @ p0, q3 @ p0, q4 @ p0, t_vec + lam * p0[E[i]], f"edge {i}"
+        )
+        beta[i] = b1, b2
+        mat[E[i]] = (1 - b1) * (1 - b2) * q1 + b1 * (1 - b2) * q2 + (1 - b1) * b2 * q3 + b1 * b2 * q4
+    coeffs = RuleCoefficients(_frozen(alpha), _frozen(beta), _frozen(t_vec), lam)
+    return _frozen(mat), _frozen(p0), coeffs
+
+
+def local_subdivision_matrix(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> np.ndarray:
+    """One step of the [LFS16] non-uniform Catmull-Clark rule on a vertex's 1-ring.
+
+    intervals: (n,) spoke knot intervals ``d_0..d_{n-1}`` (n >= 3, finite, positive).
+    angles: ``"standard"`` (``2 pi / n``, [LFS16]) or ``"modified"`` (seed 001).
+    lengths: ``"fourier"`` (seeds 000/001, [LFS16]; default) or ``"appendix"`` (seed 002 as
+        printed, reconstructed; fails the eigenvalue check at large ratios, see
+        :func:`spoke_lengths`).
+    Returns ``M``: (2n+1, 2n+1) float64, read-only, new = ``M @ old`` in the order
+    [V, E_0..E_{n-1}, F_0..F_{n-1}] (module docstring).  Rows sum to 1.
+
+    Rows: vertex, seed 002 eq. (11) (:func:`vertex_rule_weights`); face ``i``, eq. (12):
+    ``(1-a1)(1-a2) V + a1 (1-a2) E_i + (1-a1) a2 E_{i+1} + a1 a2 F_i`` with ``(a1, a2)`` solving
+    ``V^1 + lambda F^_i = (same bilinear form on the eigen-polyhedron)``; edge ``i``: seed 002's
+    edge rule with ``P_{i,1..4}`` built from the neighbouring faces' ``alpha`` and ``(b1, b2)``
+    solving ``V^1 + lambda E^_i = ...``.  Both solves are closed-form quadratics
+    (:func:`_bilinear_roots`); the root on the branch through the unit square is used
+    (:func:`_bilinear_inverse`), so for large interval ratios a few weights can be slightly
+    negative (the rule is then not a convex combination; :func:`rule_coefficients` shows it).
+    Cached by (valence, intervals scaled to max 1 and rounded to 14 digits, options).
+    """
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    return _solve(_key(intervals)[0], angles, lengths)[0]
+
+
+def rule_coefficients(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> RuleCoefficients:
+    """The solved ``alpha`` (face), ``beta`` (edge), ``T`` and ``lambda``: see RuleCoefficients.
+
+    ``T`` refers to ``eigen_polyhedron(intervals)``: lengths scale with the intervals, so ``T``
+    does too (the cached solution is for the intervals scaled to maximum 1)."""
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    key, scale = _key(intervals)
+    c = _solve(key, angles, lengths)[2]
+    return c._replace(translation=_frozen(c.translation * scale))
+
+
+# --------------------------------------------------------------------------------------------
+# 4. Eigen-analysis: limit point and tangent plane (seed 002 section 3.5, steps 2-3)
+
+
+class _Eigen(NamedTuple):
+    eigenvalues: np.ndarray
+    limit: np.ndarray
+    tangent: np.ndarray
+    projector: np.ndarray
+
+
+@functools.lru_cache(maxsize=4096)
+def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
+    mat, p0, coeffs = _solve(key, angles, lengths)
+    size = mat.shape[0]
+    n = (size - 1) // 2
+    lam = coeffs.lam
+    ev = np.linalg.eigvals(mat)
+    order = np.lexsort((-ev.real, -np.round(np.abs(ev), 12)))
+    ev = ev[order]
+
+    # Dominant left eigenvector (eigenvalue 1): null vector of (M - I)^T, sum normalised to 1.
+    _, sv, vt = np.linalg.svd((mat - np.eye(size)).T)
+    if sv[-2] <= 1e-10 * sv[0]:
+        raise ValueError(f"valence {n} intervals {list(key)}: eigenvalue 1 is not simple")
+    limit = vt[-1] / vt[-1].sum()
+
+    # Right eigenvectors for lambda are known in closed form (seed 001 after eq. 3):
+    # R = P^0 - 1 T / (1 - lambda).  Left eigenvectors: the 2-D null space of (M - lambda I)^T,
+    # normalised by L R = I; since L 1 = 0 this is L P^0 = I_2.
+    right = p0 - coeffs.translation[None, :] / (1.0 - lam)
+    _, sv, vt = np.linalg.svd((mat - lam * np.eye(size)).T)
+    if sv[-3] <= 1e-10 * sv[0]:
+        raise ValueError(
+            f"valence {n} intervals {list(key)}: lambda = {lam} has a left eigenspace of "
+            f"dimension > 2"
+        )
+    left = vt[-2:]
+    left = np.linalg.solve(left @ right, left)
+
+    # Seed 002 step 3: N^_{ij} = N_{i+1,j+1} - N_{0,j+1} acts on P^ = [E - V, F - V]; Q projects
+    # onto its lambda-eigenspace, Q = (D R) L[:, 1:], and V-bar = Q P^.  As weights on the local
+    # points: Q D = (D R) L with D = [-1 | I].
+    dmat = np.hstack([-np.ones((size - 1, 1)), np.eye(size - 1)])
+    projector = (dmat @ right) @ left
+    return _Eigen(_frozen(ev), _frozen(limit), _frozen(left), _frozen(projector))
+
+
+def subdivision_eigenvalues(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> np.ndarray:
+    """Eigenvalues of :func:`local_subdivision_matrix`, (2n+1,) complex128, by modulus, largest
+    first (ties: larger real part first).  By construction 1 and ``lambda`` (twice) are among
+    them; G1 needs ``1 > lambda = lambda > |others|`` (seed 000 section 3), which the
+    construction does not guarantee: see the tests and the report for where it holds.
+    """
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    return _eigen(_key(intervals)[0], angles, lengths).eigenvalues
+
+
+def limit_point_weights(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> np.ndarray:
+    """Weights of the limit position of ``V``: (2n+1,) float64, sum 1 (seed 002 section 3.5
+    step 2: the left eigenvector of eigenvalue 1, ``C = L^0 P``)."""
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    return _eigen(_key(intervals)[0], angles, lengths).limit
+
+
+def tangent_weights(intervals, angles: str = "standard", lengths: str = "fourier") -> np.ndarray:
+    """Two tangent vectors at the limit point: (2, 2n+1) float64, each row sums to 0.
+
+    The rows are the left eigenvectors of the subdominant eigenvalue ``lambda`` (seed 002 section
+    3.5 step 3), normalised against the right eigenvectors ``P^0 - 1 T / (1 - lambda)`` (the
+    eigen-polyhedron, which spans them by construction) so that ``rows @ P^0 = I_2``: row 0 is
+    the derivative of the limit surface along the eigen-polyhedron's x axis (spoke 0's
+    direction), row 1 along its y axis.  The normal is ``(w[0] @ P) x (w[1] @ P)``.
+    """
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    key, scale = _key(intervals)
+    # cached for the intervals scaled to maximum 1; P^0 scales with the intervals
+    return _frozen(_eigen(key, angles, lengths).tangent / scale)
+
+
+def tangent_projector(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> np.ndarray:
+    """Seed 002 section 3.5 step 3 as weights: (2n, 2n+1) float64, rows sum to 0.
+
+    Row ``k`` gives ``V-bar_k = (Q P^)_k``, the projection of ``P^ = [E_0 - V, .., E_{n-1} - V,
+    F_0 - V, .., F_{n-1} - V]`` onto the ``lambda``-eigenspace of
+    ``N^_{ij} = N_{i+1,j+1} - N_{0,j+1}``: the vectors that seed 002 step 4 moves the auxiliary
+    points with (it uses the face rows ``V-bar_{n+i}``).  Every row is a combination of the two
+    rows of :func:`tangent_weights`, so all ``V-bar_k`` lie in the tangent plane.
+    """
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    return _eigen(_key(intervals)[0], angles, lengths).projector
