@@ -109,6 +109,23 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
         shape = np.shape(getattr(topo, name))
         if shape != (p, 4):
             raise BrepError(f"PatchTopology.{name} has shape {shape}, expected ({p}, 4)")
+    for name, n in (("corner_vertex", topo.n_vertices), ("side_edge", topo.n_edges)):
+        ids = np.asarray(getattr(topo, name))
+        if ids.size and (ids.min() < 0 or ids.max() >= n):
+            raise BrepError(f"PatchTopology.{name} has ids outside 0..{n - 1}")
+    # Every side must join its edge's two vertices in the edge's direction.
+    start = np.where(topo.side_reversed, np.roll(topo.corner_vertex, -1, axis=1), topo.corner_vertex)
+    end = np.where(topo.side_reversed, topo.corner_vertex, np.roll(topo.corner_vertex, -1, axis=1))
+    ends = np.full((topo.n_edges, 2), -1, dtype=np.int64)
+    flat = topo.side_edge.ravel()
+    ends[flat[::-1], 0], ends[flat[::-1], 1] = start.ravel()[::-1], end.ravel()[::-1]  # first use wins
+    bad = np.nonzero((ends[topo.side_edge, 0] != start) | (ends[topo.side_edge, 1] != end))
+    if len(bad[0]):
+        row, side = int(bad[0][0]), int(bad[1][0])
+        raise BrepError(
+            f"patch {row} side {side} runs between vertices {start[row, side]}, {end[row, side]} "
+            f"but its edge {topo.side_edge[row, side]} between {ends[topo.side_edge[row, side]].tolist()}"
+        )
     for row, degree, face, net in patches:
         if net.shape != (degree + 1, degree + 1, 3):
             raise BrepError(f"patch {row} (face {face}): net shape {net.shape}, degree {degree}")
@@ -154,12 +171,13 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
             eid = side_edge[row, k]
             if edges[eid] is not None:
                 continue
-            if side_reversed[row, k]:
-                raise BrepError(f"edge {eid}: its first side (patch {row}, side {k}) is marked reversed")
+            # The contract makes the first side forward; follow side_reversed regardless.
+            rev = bool(side_reversed[row, k])
+            curve_row = _side_row(net, k)[::-1] if rev else _side_row(net, k)
             e = TopoDS_Edge()
-            builder.MakeEdge(e, _bezier_curve(_side_row(net, k)), tol)
-            v0 = vertices[corner_vertex[row, k]]
-            v1 = vertices[corner_vertex[row, (k + 1) % 4]]
+            builder.MakeEdge(e, _bezier_curve(curve_row), tol)
+            v0 = vertices[corner_vertex[row, (k + 1) % 4 if rev else k]]
+            v1 = vertices[corner_vertex[row, k if rev else (k + 1) % 4]]
             builder.Add(e, v0.Oriented(TopAbs_FORWARD))
             builder.Add(e, v1.Oriented(TopAbs_REVERSED))
             edges[eid] = e

