@@ -1,7 +1,7 @@
 """Where do the local eigen-polyhedron rules keep their promises?  Prints small tables.
 
 For valences n and random spoke intervals with max/min ratio r (one spoke at 1, one at r, the
-others uniform in [1, r]) it counts, per (options, n, r):
+others uniform, then log-uniform, in [1, r]) it counts, per (options, n, r):
   eig   configurations with 1 > lambda = lambda > |others| (the G1 necessary condition),
   conv  configurations whose face and edge coefficients all lie in [0, 1] (convex rule),
   fail  configurations where the bilinear solves had no admissible root (ValueError),
@@ -21,24 +21,28 @@ import numpy as np
 from patching import eigen_polyhedron as ep
 
 VALENCES = [3, 5, 6, 7, 8, 10, 12, 16]
-RATIOS = [1.5, 2, 5, 10, 20, 100, 1e4]
+RATIOS = [2, 5, 10, 20, 50, 100, 1e3, 1e4]
 OPTIONS = [("standard", "appendix"), ("standard", "fourier"), ("modified", "fourier")]
 
 
-def intervals(rng, n, ratio):
-    d = rng.uniform(1.0, ratio, size=n)
+def intervals(rng, n, ratio, law="uniform"):
+    """One spoke at 1, one at ratio, the others uniform (or log-uniform) in [1, ratio]."""
+    if law == "log":
+        d = 10.0 ** rng.uniform(0.0, np.log10(ratio), size=n)
+    else:
+        d = rng.uniform(1.0, ratio, size=n)
     k = rng.permutation(n)[:2]
     d[k[0]], d[k[1]] = 1.0, ratio
     return d
 
 
-def cell(rng, n, ratio, angles, lengths, samples):
+def cell(rng, n, ratio, angles, lengths, samples, law):
     eig = conv = fail = 0
     worst = 0.0
     lam = ep.characteristic_scale(n).lam
     t0 = time.perf_counter()
     for _ in range(samples):
-        d = intervals(rng, n, ratio) * (1.0 + 1e-9 * rng.random())  # defeat the cache
+        d = intervals(rng, n, ratio, law) * (1.0 + 1e-9 * rng.random())  # defeat the cache
         try:
             c = ep.rule_coefficients(d, angles=angles, lengths=lengths)
             ev = ep.subdivision_eigenvalues(d, angles=angles, lengths=lengths)
@@ -57,13 +61,16 @@ def cell(rng, n, ratio, angles, lengths, samples):
 
 def main(samples: int = 40) -> None:
     rng = np.random.default_rng(2016)
-    for angles, lengths in OPTIONS:
-        print(f"\nangles={angles} lengths={lengths}  ({samples} samples per cell: eig/conv/fail gap)")
+    for (angles, lengths), law in [(o, law) for law in ("uniform", "log") for o in OPTIONS]:
+        print(
+            f"\nangles={angles} lengths={lengths} intervals {law} in [1, r]"
+            f"  ({samples} samples per cell: eig/conv/fail gap)"
+        )
         print("   n " + "".join(f"{'r=' + format(r, 'g'):>22}" for r in RATIOS))
         for n in VALENCES:
             row, times = [], []
             for r in RATIOS:
-                eig, conv, fail, worst, dt = cell(rng, n, r, angles, lengths, samples)
+                eig, conv, fail, worst, dt = cell(rng, n, r, angles, lengths, samples, law)
                 row.append(f"{eig:>3}/{conv:>3}/{fail:>2} {worst:6.3f}")
                 times.append(dt)
             print(f"{n:>4} " + "".join(f"{x:>22}" for x in row) + f"   {1e3 * np.mean(times):.2f} ms/vertex")

@@ -14,10 +14,10 @@ A vertex ``V`` of valence ``n`` with spoke edges ``V-E_i`` (knot interval ``d_i`
     index   0    1 .. n          n+1 .. 2n
     point   V    E_0 .. E_{n-1}  F_0 .. F_{n-1}
 
-(``VERTEX``, ``edge_index(n, i)``, ``face_index(n, i)``).  Drawn for n = 4, any n continues
-counter-clockwise in the same way:
+(``VERTEX``, ``edge_index(n, i)``, ``face_index(n, i)``).  Drawn for n = 4 with the knot
+interval written on every edge; any n continues counter-clockwise in the same way:
 
-        F_1 ------ d_0 ------ E_1 ------ d_0 ------ F_0
+        F_1 ------ d_2 ------ E_1 ------ d_0 ------ F_0
          |                     |                     |
          |                     |                     |
         d_1      face 1       d_1      face 0       d_1
@@ -29,7 +29,7 @@ counter-clockwise in the same way:
         d_3      face 2       d_3      face 3       d_3
          |                     |                     |
          |                     |                     |
-        F_2 ------ d_2 ------ E_3 ------ d_2 ------ F_3
+        F_2 ------ d_2 ------ E_3 ------ d_0 ------ F_3
 
 In face ``i`` the edge ``E_i-F_i`` is opposite spoke ``i+1`` and carries ``d_{i+1}``; the edge
 ``E_{i+1}-F_i`` is opposite spoke ``i`` and carries ``d_i`` (opposite quad edges share an
@@ -331,7 +331,9 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in seed 001 (``E_{i+1}``
     twice); seed 000 eq. (7) has the form above.  ``f_i``: seed 002 gives ``d_{i-1} d_{i+2}`` (the
     same weights as its eq. 3); seeds 000/001 print a garbled product over ``j != i, i+1``, which
-    equals ``d_{i-1} d_{i+2}`` for valence 4.  The seed 002 form is used.
+    equals ``d_{i-1} d_{i+2}`` for valence 4.  The seed 002 form is used; the product form was
+    tried too and behaves the same in the eigenvalue sweep (neither fixes the failures at
+    extreme ratios, see :func:`subdivision_eigenvalues`).
     Checks (tests): uniform intervals give Catmull-Clark's ``(n-2)/n V + (sum E + sum F)/n^2``;
     valence 4 gives the tensor product of cubic B-spline vertex rules (knot insertion).
     """
@@ -618,7 +620,20 @@ def subdivision_eigenvalues(
     """Eigenvalues of :func:`local_subdivision_matrix`, (2n+1,) complex128, by modulus, largest
     first (ties: larger real part first).  By construction 1 and ``lambda`` (twice) are among
     them; G1 needs ``1 > lambda = lambda > |others|`` (seed 000 section 3), which the
-    construction does not guarantee: see the tests and the report for where it holds.
+    construction does not guarantee (seed 000 section 6: "no proof").  Measured
+    (``benchmarks/eigen.py``, default options, spoke ratio max/min = r, intervals uniform or
+    log-uniform in [1, r], n = 3..16):
+
+    * r <= 20: holds in every sample, every valence (also the tests: n = 3..16, r = 5 and 20);
+    * r >= 50: n = 3, 6, 10 still hold up to r = 1e4; n = 5, 8, 12, 16 fail in a growing share
+      (log-uniform, r = 1e4: about half for n = 5): a negative eigenvalue of modulus > lambda,
+      and for n = 8 some bilinear solves have no real root (ValueError);
+    * ``angles="modified"`` (seed 001) behaves alike: its claim of G1 for intervals in
+      [1e-6, 1] at n = 3, 5, 6, 7, 8 is not reproduced for n = 5 and 8;
+    * ``lengths="appendix"`` fails already from r = 10 (eigenvalues > 1 for some n = 7 cases).
+
+    The face/edge coefficients stay in [0, 1] (a convex rule) up to r = 5 for every valence;
+    beyond that some leave it (n = 3 from r ~ 10), while the eigen-structure may still hold.
     """
     _check_choice("angles", angles, ANGLE_CHOICES)
     _check_choice("lengths", lengths, LENGTH_CHOICES)

@@ -81,14 +81,16 @@ def boehm_insert(knots, t):
     return np.insert(knots, j + 1, t), a
 
 
-def curve_refinement_rows(d_left, d_right, pad=(0.7, 1.3)):
+def curve_refinement_rows(d_left, d_right, pad=(0.7, 1.3), outer=None):
     """1-D midpoint refinement at a vertex knot with intervals d_left | d_right on each side.
 
-    Intervals along the line: pad, d_left, d_left, d_right, d_right, pad (the edge beyond each
-    neighbour carries the spoke's interval, as the eigen rules assume).  Returns a (3, 3)
+    Intervals along the line: pad, outer_l, d_left, d_right, outer_r, pad with outer = (d_left,
+    d_right) by default (the edge beyond each neighbour carries the spoke's interval, as the
+    eigen rules assume).  Returns a (3, 3)
     matrix: rows = new [left edge point, vertex point, right edge point], columns = old
     [left neighbour, vertex, right neighbour]; asserts that nothing else contributes."""
-    intervals = [pad[0], pad[0], d_left, d_left, d_right, d_right, pad[1], pad[1]]
+    outer = (d_left, d_right) if outer is None else outer
+    intervals = [pad[0], pad[0], outer[0], d_left, d_right, outer[1], pad[1], pad[1]]
     knots = np.concatenate([[0.0], np.cumsum(intervals)])
     t2 = knots[4]  # the vertex knot: vertex point = f(t1, t2, t3) = control point 2
     total = np.eye(knots.size - 4)
@@ -109,10 +111,13 @@ def curve_refinement_rows(d_left, d_right, pad=(0.7, 1.3)):
     return sub[:, [1, 2, 3]]
 
 
-def nurbs_valence4_matrix(d):
-    """Valence-4 vertex: tensor product of 1-D refinements; u along spokes 0/2, v along 1/3."""
-    wu = curve_refinement_rows(d[2], d[0])  # old/new index 0: -u, 1: centre, 2: +u
-    wv = curve_refinement_rows(d[3], d[1])
+def nurbs_valence4_matrix(d, outer=None):
+    """Valence-4 vertex: tensor product of 1-D refinements; u along spokes 0/2, v along 1/3.
+
+    outer: intervals a_0..a_3 of the edges continuing the spokes beyond E_i (default d)."""
+    a = d if outer is None else outer
+    wu = curve_refinement_rows(d[2], d[0], outer=(a[2], a[0]))  # index 0: -u, 1: centre, 2: +u
+    wv = curve_refinement_rows(d[3], d[1], outer=(a[3], a[1]))
     # local point -> (u slot, v slot)
     slots = {0: (1, 1), 1: (2, 1), 2: (1, 2), 3: (0, 1), 4: (1, 0)}
     slots.update({5: (2, 2), 6: (0, 2), 7: (0, 0), 8: (2, 0)})
@@ -151,6 +156,16 @@ def test_valence4_is_nurbs_knot_insertion(seed, angles, lengths):
     m = ep.local_subdivision_matrix(d, angles=angles, lengths=lengths)
     # 1e-13: rational weights of intervals up to 20, each through a quadratic solve.
     np.testing.assert_allclose(m, nurbs_valence4_matrix(d), rtol=0, atol=1e-13)
+
+
+def test_valence4_needs_outer_intervals_equal_to_spokes():
+    # The local rule reads the spoke intervals only: it is knot insertion exactly when the
+    # edges continuing the spokes (seed 002's a_i) carry the spoke intervals, as after one
+    # refinement step.  With other a_i the NURBS refinement differs, so the rule is not it.
+    d = np.array([1.0, 3.0, 2.0, 5.0])
+    m = ep.local_subdivision_matrix(d)
+    np.testing.assert_allclose(m, nurbs_valence4_matrix(d), atol=1e-14)
+    assert np.abs(m - nurbs_valence4_matrix(d, outer=[2.0, 1.0, 4.0, 3.0])).max() > 1e-2
 
 
 def test_valence4_eigenvalues_are_the_bicubic_ones():
@@ -444,7 +459,7 @@ def test_rows_sum_to_one_and_rotation_permutes(d, shift, opts):
     np.testing.assert_allclose(m.sum(axis=1), 1.0, atol=1e-14)
     m2 = ep.local_subdivision_matrix(np.roll(d, -shift), angles=angles, lengths=lengths)
     perm = relabel(n, shift, False)
-    # 1e-12: the cache key rounds intervals to 12 significant digits
+    # 1e-12: the cache key rounds intervals to 14 significant digits, then quadratic solves
     np.testing.assert_allclose(m2, m[np.ix_(perm, perm)], atol=1e-12)
     w2 = ep.limit_point_weights(np.roll(d, -shift), angles=angles, lengths=lengths)
     np.testing.assert_allclose(w2, ep.limit_point_weights(d, angles=angles, lengths=lengths)[perm], atol=1e-11)
