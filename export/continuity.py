@@ -124,42 +124,71 @@ def _diagonal(shape: TopoDS_Shape) -> float:
     return math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
 
 
-class _FaceSide:
-    """Evaluates one face along one edge: w on the edge -> point and outward normal."""
+class _Surfaces:
+    """Surface adaptors of the shape's faces, built once per face, and their D1 evaluation."""
 
-    def __init__(self, edge, face, same_parameter: bool, tol: float) -> None:
-        self.surface = BRepAdaptor_Surface(face, False)
-        self.sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
-        self.pcurve = BRepAdaptor_Curve2d(edge, face) if same_parameter else None
-        self.projector = None if same_parameter else ShapeAnalysis_Surface(BRep_Tool.Surface_s(face))
+    def __init__(self, faces: TopTools_IndexedMapOfShape, tol: float) -> None:
+        self.faces = faces
         self.tol = tol
+        self.adaptors: dict[int, BRepAdaptor_Surface] = {}
+        self.projectors: dict[int, ShapeAnalysis_Surface] = {}
         self.p, self.du, self.dv = gp_Pnt(), gp_Vec(), gp_Vec()
 
-    def evaluate(self, w: float, point3d: gp_Pnt) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        if self.pcurve is not None:
-            uv = self.pcurve.Value(w)
-        else:
-            uv = self.projector.ValueOfUV(point3d, self.tol)
-        self.surface.D1(uv.X(), uv.Y(), self.p, self.du, self.dv)
-        n = self.du.Crossed(self.dv)
-        s = self.sign
-        return self.p.Coord(), (s * n.X(), s * n.Y(), s * n.Z())
+    def index(self, face) -> int:
+        return self.faces.FindIndex(face) - 1
+
+    def adaptor(self, i: int) -> BRepAdaptor_Surface:
+        if i not in self.adaptors:
+            self.adaptors[i] = BRepAdaptor_Surface(TopoDS.Face_s(self.faces.FindKey(i + 1)), False)
+        return self.adaptors[i]
+
+    def project(self, i: int, point: gp_Pnt):
+        if i not in self.projectors:
+            face = TopoDS.Face_s(self.faces.FindKey(i + 1))
+            self.projectors[i] = ShapeAnalysis_Surface(BRep_Tool.Surface_s(face))
+        return self.projectors[i].ValueOfUV(point, self.tol)
+
+    def sample(self, edge, face, orientation, ws: np.ndarray, curve) -> list[tuple[float, ...]]:
+        """(x, y, z, nx, ny, nz) at each w: the face's point and its outward S_u x S_v."""
+        i = self.index(face)
+        surface = self.adaptor(i)
+        sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
+        if orientation is not None:  # one side of a seam: its own pcurve
+            edge = TopoDS.Edge_s(edge.Oriented(orientation))
+        pcurve = BRepAdaptor_Curve2d(edge, face) if curve is None else None
+        p, du, dv = self.p, self.du, self.dv
+        out = []
+        for w in ws:
+            uv = pcurve.Value(w) if curve is None else self.project(i, curve.Value(w))
+            surface.D1(uv.X(), uv.Y(), p, du, dv)
+            n = du.Crossed(dv)
+            out.append((p.X(), p.Y(), p.Z(), sign * n.X(), sign * n.Y(), sign * n.Z()))
+        return out
 
 
-def _sample_edge(edge, face1, face2, samples: int, tol: float) -> np.ndarray:
-    """(samples, 2, 2, 3): for each w, (point, normal) on face1 and on face2."""
+def _shapes(listed) -> list:
+    """The shapes of a TopTools_ListOfShape; Python iteration over one costs ~100 us, so the
+    usual one or two are taken with First() and Last()."""
+    n = listed.Size()
+    if n <= 2:
+        return [listed.First(), listed.Last()][2 - n :] if n else []
+    return list(listed)
+
+
+def _sample_edge(surfaces: _Surfaces, edge, side1, side2, fractions: np.ndarray) -> np.ndarray:
+    """(samples, 2, 2, 3): at each w, (point, normal) on the face of side1 and of side2.
+
+    A side is (face, orientation): orientation None for an ordinary edge, FORWARD or
+    REVERSED to pick one pcurve of a seam.  SameParameter edges are evaluated through their
+    pcurves at the edge parameter; others by projecting the edge's 3D point.
+    """
     curve = BRepAdaptor_Curve(edge)
     first, last = curve.FirstParameter(), curve.LastParameter()
-    same = BRep_Tool.SameParameter_s(edge)
-    side1 = _FaceSide(edge if face1[1] is None else TopoDS.Edge_s(edge.Oriented(face1[1])), face1[0], same, tol)
-    side2 = _FaceSide(edge if face2[1] is None else TopoDS.Edge_s(edge.Oriented(face2[1])), face2[0], same, tol)
-    out = np.empty((samples, 2, 2, 3))
-    for k, w in enumerate(np.linspace(first, last, samples)):
-        w = float(w)
-        p3 = curve.Value(w) if not same else None
-        out[k, 0] = side1.evaluate(w, p3)
-        out[k, 1] = side2.evaluate(w, p3)
-    return out
+    ws = [float(w) for w in first + (last - first) * fractions]
+    projected = None if BRep_Tool.SameParameter_s(edge) else curve
+    a = surfaces.sample(edge, side1[0], side1[1], ws, projected)
+    b = surfaces.sample(edge, side2[0], side2[1], ws, projected)
+    return np.array([a, b]).reshape(2, len(ws), 2, 3).transpose(1, 0, 2, 3)
 
 
 def check_continuity(shape_or_path: TopoDS_Shape | str | os.PathLike, samples_per_edge: int = 9) -> ContinuityReport:
@@ -180,13 +209,15 @@ def check_continuity(shape_or_path: TopoDS_Shape | str | os.PathLike, samples_pe
     diagonal = _diagonal(shape)
     tol = 1e-9 * diagonal if diagonal > 0 else 1e-9
 
+    surfaces = _Surfaces(faces, tol)
+    fractions = np.linspace(0.0, 1.0, samples_per_edge)
     pairs: list[tuple[int, tuple[int, int], np.ndarray]] = []
     n_free = 0
     for i in range(1, edge_faces.Extent() + 1):
         edge = TopoDS.Edge_s(edge_faces.FindKey(i))
         if BRep_Tool.Degenerated_s(edge) or not BRep_Tool.IsGeometric_s(edge):
             continue
-        ancestors = list(edge_faces.FindFromIndex(i))
+        ancestors = _shapes(edge_faces.FindFromIndex(i))
         distinct = []
         for f in ancestors:
             if not any(f.IsSame(g) for g in distinct):
@@ -200,8 +231,8 @@ def check_continuity(shape_or_path: TopoDS_Shape | str | os.PathLike, samples_pe
         else:  # two faces (or, non-manifold, more: each against the first)
             sides = [(TopoDS.Face_s(f), None) for f in distinct]
         for other in sides[1:]:
-            samples = _sample_edge(edge, sides[0], other, samples_per_edge, tol)
-            face_ids = (faces.FindIndex(sides[0][0]) - 1, faces.FindIndex(other[0]) - 1)
+            samples = _sample_edge(surfaces, edge, sides[0], other, fractions)
+            face_ids = (surfaces.index(sides[0][0]), surfaces.index(other[0]))
             pairs.append((i - 1, face_ids, samples))
 
     worst: list[EdgeDefect] = []
