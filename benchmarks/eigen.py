@@ -73,8 +73,26 @@ def main(samples: int = 40) -> None:
                 eig, conv, fail, worst, dt = cell(rng, n, r, angles, lengths, samples, law)
                 row.append(f"{eig:>3}/{conv:>3}/{fail:>2} {worst:6.3f}")
                 times.append(dt)
-            print(f"{n:>4} " + "".join(f"{x:>22}" for x in row) + f"   {1e3 * np.mean(times):.2f} ms/vertex")
+            cells = "".join(f"{x:>22}" for x in row)
+            print(f"{n:>4} {cells}   {1e3 * np.mean(times):.2f} ms/vertex")
+
+
+def cache_timing() -> None:
+    """One valence-5 vertex: solve (uncached) versus lookup (cached), the ratio the cache buys."""
+    d = [1.0, 2.0, 3.0, 1.5, 4.0]
+    ep._solve.cache_clear()
+    ep._eigen.cache_clear()
+    t0 = time.perf_counter()
+    ep.tangent_weights(d)
+    solve = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for _ in range(1000):
+        ep.tangent_weights(d)
+    lookup = (time.perf_counter() - t0) / 1000
+    print(f"\nvalence 5: solve {1e3 * solve:.2f} ms, cached lookup {1e6 * lookup:.1f} us, "
+          f"ratio {solve / lookup:.0f}")
 
 
 if __name__ == "__main__":
+    cache_timing()
     main(int(sys.argv[1]) if len(sys.argv) > 1 else 40)

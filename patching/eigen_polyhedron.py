@@ -328,8 +328,8 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     B-spline puts its new edge point when the next interval along the spoke equals ``d_i``) and
     the face term is ``G_i``, a fixed bilinear point of face ``i``, not the eigen-solved new face
     point (with the latter the rule would also be well defined, but it would be implicit; every
-    seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in seed 001 (``E_{i+1}``
-    twice); seed 000 eq. (7) has the form above.  ``f_i``: seed 002 gives ``d_{i-1} d_{i+2}`` (the
+    seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in seed 001
+    (``E_{i+1}`` twice); seed 000 eq. (7) has the form above.  ``f_i``: seed 002 gives ``d_{i-1} d_{i+2}`` (the
     same weights as its eq. 3); seeds 000/001 print a garbled product over ``j != i, i+1``, which
     equals ``d_{i-1} d_{i+2}`` for valence 4.  The seed 002 form is used; the product form was
     tried too and behaves the same in the eigenvalue sweep (neither fixes the failures at
@@ -519,7 +519,7 @@ def _solve(key: tuple[float, ...], angles: str, lengths: str):
             q1 @ p0, q2 @ p0, q3 @ p0, q4 @ p0, t_vec + lam * p0[E[i]], f"edge {i}"
         )
         beta[i] = b1, b2
-        mat[E[i]] = (1 - b1) * (1 - b2) * q1 + b1 * (1 - b2) * q2 + (1 - b1) * b2 * q3 + b1 * b2 * q4
+        mat[E[i]] = (1 - b1) * ((1 - b2) * q1 + b2 * q3) + b1 * ((1 - b2) * q2 + b2 * q4)
     coeffs = RuleCoefficients(_frozen(alpha), _frozen(beta), _frozen(t_vec), lam)
     return _frozen(mat), _frozen(p0), coeffs
 

@@ -170,7 +170,8 @@ def test_valence4_needs_outer_intervals_equal_to_spokes():
 
 def test_valence4_eigenvalues_are_the_bicubic_ones():
     ev = ep.subdivision_eigenvalues([1.0, 3.0, 7.0, 2.0])
-    np.testing.assert_allclose(ev, [1, 0.5, 0.5, 0.25, 0.25, 0.25, 0.125, 0.125, 0.0625], atol=1e-13)
+    bicubic = [1, 0.5, 0.5, 0.25, 0.25, 0.25, 0.125, 0.125, 0.0625]  # products of 1, 1/2, 1/4, 1/8
+    np.testing.assert_allclose(ev, bicubic, atol=1e-13)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -213,7 +214,8 @@ def test_modified_angles_properties(n):
 
 
 def test_modified_angles_valence4_and_small_interval():
-    np.testing.assert_allclose(ep.eigen_angles([1, 5, 2, 30.0], "modified"), math.pi / 2, rtol=1e-14)
+    th = ep.eigen_angles([1, 5, 2, 30.0], "modified")
+    np.testing.assert_allclose(th, math.pi / 2, rtol=1e-14)
     # seed 001: a spoke whose interval is tiny compared with the others makes both sectors
     # beside it tend to right angles (the zero-interval = double-knot limit of Fig. 4).
     th = ep.eigen_angles([1e-9, 1, 1, 1, 1], "modified")
@@ -293,7 +295,8 @@ def test_extreme_ratio_loses_the_eigen_structure(angles):
     # one of them (ratio 1e4); the same happens inside seed 001's test range [1e-6, 1].
     for d in (
         [10000.0, 107.5090358880951, 3152.15105974721, 258.1861017480902, 1.0],
-        [0.67209927957375, 0.0034093992543232, 0.0011118918743652, 0.76647357270208, 0.00016671997205609],
+        [0.67209927957375, 0.0034093992543232, 0.0011118918743652, 0.76647357270208,
+         0.00016671997205609],
     ):
         ev = ep.subdivision_eigenvalues(d, angles=angles)
         lam = ep.characteristic_scale(5).lam
@@ -332,6 +335,23 @@ def test_coefficients_in_unit_range_up_to_ratio_5(n):
         coef = np.concatenate([c.alpha.ravel(), c.beta.ravel()])
         assert np.all((coef >= 0) & (coef <= 1)), (n, d.tolist())
         assert np.all(ep.local_subdivision_matrix(d) >= 0)
+
+
+@pytest.mark.parametrize("n", [3, 5, 6, 8, 12])
+def test_face_solve_has_exactly_one_root_in_the_square(n):
+    # uniqueness of eq. (12)'s solution: the other root of the quadratic (if real) lies outside
+    rng = np.random.default_rng(23 * n)
+    for ratio in (1.0, 5.0, 20.0):
+        d = random_intervals(rng, n, ratio)
+        p0 = ep.eigen_polyhedron(d)
+        c = ep.rule_coefficients(d)
+        for i in range(n):
+            e0, e1 = p0[ep.edge_index(n, i)], p0[ep.edge_index(n, i + 1)]
+            f = p0[ep.face_index(n, i)]
+            roots = ep._bilinear_roots(p0[0], e0, e1, f, c.translation + c.lam * f)
+            inside = [r for r in roots if -1e-12 <= min(r) and max(r) <= 1 + 1e-12]
+            assert len(inside) == 1
+            np.testing.assert_allclose(inside[0], c.alpha[i], atol=1e-12)
 
 
 def test_coefficients_leave_unit_range_for_valence3_at_ratio_100():
@@ -462,7 +482,8 @@ def test_rows_sum_to_one_and_rotation_permutes(d, shift, opts):
     # 1e-12: the cache key rounds intervals to 14 significant digits, then quadratic solves
     np.testing.assert_allclose(m2, m[np.ix_(perm, perm)], atol=1e-12)
     w2 = ep.limit_point_weights(np.roll(d, -shift), angles=angles, lengths=lengths)
-    np.testing.assert_allclose(w2, ep.limit_point_weights(d, angles=angles, lengths=lengths)[perm], atol=1e-11)
+    w = ep.limit_point_weights(d, angles=angles, lengths=lengths)
+    np.testing.assert_allclose(w2, w[perm], atol=1e-11)
 
 
 @settings(max_examples=30, deadline=None)
