@@ -14,7 +14,7 @@ from export.continuity import ContinuityReport, check_continuity
 from export.step import write_step
 
 try:
-    from tests.test_brep import cube, seam_tube, single_patch, torus
+    from tests.test_brep import _edges, cube, seam_tube, single_patch, torus
 except ImportError:  # tests/ on sys.path rather than a package
     from test_brep import _edges, cube, seam_tube, single_patch, torus
 
