@@ -178,6 +178,18 @@ def count(shape, kind) -> int:
     return found.Extent()
 
 
+def edges_of(shape):
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, found)
+    return [TopoDS.Edge_s(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
+
+
+def first_face(shape):
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, found)
+    return TopoDS.Face_s(found.FindKey(1))
+
+
 # --------------------------------------------------------------------------- tests
 
 MIXED = (3, 5, 3, 5, 5, 3)
@@ -219,20 +231,8 @@ def test_patch_closed_on_itself_gets_a_seam_edge():
     assert shape.ShapeType() == TopAbs_SHELL
     assert BRepCheck_Analyzer(shape).IsValid()
     assert (count(shape, TopAbs_FACE), count(shape, TopAbs_EDGE), count(shape, TopAbs_VERTEX)) == (1, 3, 2)
-    face = _face(shape)
-    assert sum(BRep_Tool.IsClosed_s(e, face) for e in _edges(shape)) == 1  # two pcurves on the face
-
-
-def _edges(shape):
-    found = TopTools_IndexedMapOfShape()
-    TopExp.MapShapes_s(shape, TopAbs_EDGE, found)
-    return [TopoDS.Edge_s(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
-
-
-def _face(shape):
-    found = TopTools_IndexedMapOfShape()
-    TopExp.MapShapes_s(shape, TopAbs_FACE, found)
-    return TopoDS.Face_s(found.FindKey(1))
+    face = first_face(shape)
+    assert sum(BRep_Tool.IsClosed_s(e, face) for e in edges_of(shape)) == 1  # two pcurves on the face
 
 
 @pytest.mark.parametrize("degrees", [None, [3, 5] * 24], ids=["bicubic", "mixed"])

@@ -14,9 +14,9 @@ from export.continuity import ContinuityReport, check_continuity
 from export.step import write_step
 
 try:
-    from tests.test_brep import _edges, cube, seam_tube, single_patch, torus
+    from tests.test_brep import cube, edges_of, seam_tube, single_patch, torus
 except ImportError:  # tests/ on sys.path rather than a package
-    from test_brep import _edges, cube, seam_tube, single_patch, torus
+    from test_brep import cube, edges_of, seam_tube, single_patch, torus
 
 # Normals of C1 neighbours agree to round-off: unit normals from derivatives of size ~10
 # computed to ~1e-15 relative give angles of a few 1e-15 rad (measured 4e-15 rad = 2.5e-13
@@ -112,7 +112,7 @@ def test_seam_of_a_smooth_tube_is_compared_across_itself():
 def test_edges_without_same_parameter_are_projected():
     shape = to_shape(torus(degrees=[3, 5] * 24))
     builder = BRep_Builder()
-    for edge in _edges(shape):
+    for edge in edges_of(shape):
         builder.SameParameter(edge, False)  # the pcurves may no longer be trusted: project
     report = check_continuity(shape)
     # ShapeAnalysis_Surface.ValueOfUV converges to round-off on these surfaces (measured
