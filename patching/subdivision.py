@@ -1,0 +1,763 @@
+"""One step of Catmull-Clark subdivision as a sparse operator, uniform or non-uniform, with sharp
+and semi-sharp features (issue 7; seeds 000, 001, 002 Appendix).
+
+``subdivision_operator(mesh)`` returns ``S`` (scipy.sparse CSR, new points = ``S @ old``) and the
+refined ControlMesh (positions already ``S @ mesh.vertices``).  ``S`` depends on topology,
+knot intervals and tags only.  The masks live in ``subdivision_rules`` (curves, BLZ gamma) and
+``eigen_polyhedron`` (a non-uniform extraordinary point's 1-ring); this module gathers
+intervals and tags from the topology and assembles the rows with numpy, looping in Python only
+over extraordinary points (each solved once per configuration by ``eigen_polyhedron``'s cache).
+
+Child numbering (as OpenSubdiv's refiner: face points, then edge points, then vertex points)::
+
+    face point of face f       f
+    edge point of edge e       n_faces + e
+    vertex point of vertex v   n_faces + n_edges + v
+
+Child faces: parent half-edge ``h`` (corner ``origin[h]`` of face ``face[h]``) becomes child
+face ``h`` = ``(V(origin h), E(edge h), F(face h), E(edge prev h))``, same orientation::
+
+        v_{i+1}
+          |  \\
+     E(h_i)---F        child face of corner i:  V(v_i) -> E(h_i) -> F -> E(h_{i-1})
+          |   |
+         v_i--E(h_{i-1})--v_{i-1}
+
+Two rule sets (``rules``):
+
+* ``"opensubdiv"``: OpenSubdiv's Catmark rules (``sdc/catmarkScheme.h``, ``sdc/crease.cpp``,
+  ``sdc/scheme.h``, ``far/topologyRefinerFactory.cpp``): boundary edges infinitely sharp in every
+  interpolateboundary mode, a vertex with one face and two edges an infinitely sharp corner in
+  mode 1 (edge-and-corner); vertex rule from (vertex sharpness, number of sharp edges): corner
+  if the vertex is sharp or has > 2 sharp edges, crease with 2, dart with 1, smooth with 0;
+  smooth = Catmull-Clark, dart = smooth, crease = ``3/4 V + 1/8 (ends)``, corner = ``V``; edge
+  points: smooth ``(a + b + F_0 + F_1) / 4``, sharp ``(a + b) / 2``, and ``s (sharp) +
+  (1 - s)(smooth)`` for ``0 < s < 1``; semi-sharp vertices blend the parent and child rules
+  with ``Crease::ComputeFractionalWeightAtVertex``.  Sharpness decrements by 1 a step
+  (OpenSubdiv's uniform creasing; its Chaikin option is not implemented).  Uniform intervals
+  only: a non-uniform mesh is refused with a KnotError.
+* ``"seed"`` (default): seed 000.  Uniform intervals: the Biermann-Levin-Zorin rules of its
+  section 2 (the same vertex classification; an untagged edge next to a tagged vertex gets
+  ``gamma = 3/8 - cos(theta)/4``, theta ``2 pi/m`` at a dart, ``pi/m`` at a crease, ``alpha/m``
+  at a convex corner); semi-sharp sharpness handled exactly as under ``"opensubdiv"`` (seed 000
+  section 5 clears the tags after ``s`` steps; the fractional blend is OpenSubdiv's).
+  Non-uniform intervals: midpoint knot insertion in regular regions (tensor products of the
+  curve rules, ``subdivision_rules``), non-uniform cubic B-spline crease curves, and the
+  eigen-polyhedron rules of [LFS16] (``eigen_polyhedron``, angles of seed 001 with
+  ``angles="modified"``) on faces and edges around an untagged extraordinary point.
+
+Choices where the seeds are silent, written once:
+
+* Corner sector angle ``alpha`` (BLZ: "the angle of the sector"): the sum of the corner angles
+  ``pi (k - 2) / k`` of the sector's k-gons, a topological angle, so that ``S`` does not depend
+  on positions; a quad sector of m faces gets ``theta = pi/2``, the standard rule (a cube's
+  corner angles are exactly that).  All corners are convex (no concave tags in DESIGN 1).
+* An untagged edge with *both* ends tagged: the mean of the two BLZ rules.
+* An endpoint's "interval beyond" (``d_{i-1}`` of the curve rules): through a regular smooth
+  vertex (interior, valence 4, quads) the straight continuation's interval; along a crease
+  through a crease vertex the other crease edge's; elsewhere (corner, dart, boundary, EP) the
+  edge's own interval, the mirror image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it
+  a crease ending at a corner interpolates the corner and its first edge point is the
+  midpoint, as seed 000's corner eigen-polyhedron (``P^1 = P^0 / 2``) requires.
+* Rows claimed by two extraordinary points (a face or edge touching both): their mean.
+* Non-quad faces (first step only): centroid face point, Catmull-Clark rows for their edges and
+  vertices; the new edges inside the face get half the interval of the parallel parent edges,
+  which is consistent (strips) only if ``d(h_{i-1}) = d(h_{i+1})`` around the face (all equal
+  for odd faces, alternating for even ones): otherwise UnsupportedError.
+* Not implemented (UnsupportedError, never a wrong surface): non-uniform intervals at a tagged
+  vertex whose sector is not regular (theta != pi/2: seed 000's generalised eigen-polyhedra,
+  section 4.2-4.3, for crease/corner/dart EPs), and at a dart of valence != 4.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .errors import KnotError, UnsupportedError
+from .mesh import INFINITELY_SHARP, ControlMesh
+from .subdivision_rules import (
+    CORNER,
+    CREASE,
+    DART,
+    SMOOTH,
+    blz_gamma,
+    curve_edge_weights,
+    curve_vertex_weights,
+)
+from .topology import Topology
+
+__all__ = ["subdivide", "subdivision_operator", "rules_tag", "RULE_SETS", "ANGLE_CHOICES"]
+
+RULE_SETS = ("seed", "opensubdiv")
+ANGLE_CHOICES = ("standard", "modified")
+#: Name of the OBJ tag that records the rule set: ``t nupatch_rules 0/0/1 seed``.
+RULES_TAG = "nupatch_rules"
+
+
+def rules_tag(rules: str) -> str:
+    """The OBJ tag line recording the rule set of a subdivided mesh."""
+    return f"t {RULES_TAG} 0/0/1 {rules}"
+
+
+def _decrement(s: np.ndarray) -> np.ndarray:
+    """OpenSubdiv's uniform creasing: ``s - 1`` (0 when ``s <= 1``), infinite stays infinite."""
+    return np.where(np.isinf(s), np.inf, np.where(s > 1.0, s - 1.0, 0.0))
+
+
+class _Rows:
+    """COO triplets of S, gathered rule by rule."""
+
+    def __init__(self) -> None:
+        self.r: list[np.ndarray] = []
+        self.c: list[np.ndarray] = []
+        self.v: list[np.ndarray] = []
+
+    def add(self, rows, cols, vals) -> None:
+        rows, cols, vals = np.broadcast_arrays(
+            np.asarray(rows, np.int64), np.asarray(cols, np.int64), np.asarray(vals, np.float64)
+        )
+        self.r.append(rows.ravel())
+        self.c.append(cols.ravel())
+        self.v.append(vals.ravel())
+
+    def matrix(self, shape) -> sp.csr_matrix:
+        r = np.concatenate(self.r) if self.r else np.zeros(0, np.int64)
+        c = np.concatenate(self.c) if self.c else np.zeros(0, np.int64)
+        v = np.concatenate(self.v) if self.v else np.zeros(0)
+        m = sp.csr_matrix((v, (r, c)), shape=shape)
+        m.sum_duplicates()
+        m.eliminate_zeros()
+        return m
+
+
+@dataclass
+class _Level:
+    """Tags of one sharpness level (the parent's, or the child's after decrementing)."""
+
+    sharp: np.ndarray  # (e,) bool
+    vertex_sharp: np.ndarray  # (v,) bool
+    rule: np.ndarray  # (v,) int8: SMOOTH, DART, CREASE, CORNER
+    crease_edges: np.ndarray  # (v, 2) int64: the two sharp edges of a CREASE vertex, else -1
+
+
+class _Context:
+    """Topology tables, intervals and tags of one mesh, as flat arrays (read-only)."""
+
+    def __init__(self, mesh: ControlMesh) -> None:
+        t = Topology(mesh)
+        self.mesh, self.topo = mesh, t
+        self.H = t.origin.size
+        self.nf, self.ne, self.nv = t.n_faces, t.n_edges, t.n_vertices
+        self.origin, self.dest, self.nxt, self.prv = t.origin, t.dest, t.next, t.prev
+        self.twin, self.face, self.eoh, self.edges = t.twin, t.face, t.edge_of, t.edges
+        self.fsize = np.diff(mesh.face_offsets)
+        self.ksize = self.fsize[self.face]  # (H,) size of the face of each half-edge
+        self.d_e = t.edge_interval
+        self.d_h = t.halfedge_interval
+        si = t.strip_interval
+        self.uniform = bool(si.size == 0 or np.all(si == si[0]))
+        self.valence = t.valence
+        self.n_faces_at = np.bincount(self.origin, minlength=self.nv)
+        self.v_boundary = t.vertex_is_boundary
+        self.e_boundary = t.edge_is_boundary
+        # Sharpness: infinite at >= 10 and on every boundary edge (OpenSubdiv, all modes).
+        es = t.edge_sharpness.copy()
+        es[es >= INFINITELY_SHARP] = np.inf
+        es[self.e_boundary] = np.inf
+        self.es = es
+        vs = np.zeros(self.nv)
+        if mesh.corners:
+            idx = np.fromiter(mesh.corners.keys(), np.int64)
+            vs[idx] = np.fromiter(mesh.corners.values(), np.float64)
+        vs[vs >= INFINITELY_SHARP] = np.inf
+        if mesh.interpolate_boundary == 1:
+            topological_corner = self.v_boundary & (self.n_faces_at == 1) & (self.valence == 2)
+            vs[topological_corner] = np.inf
+        self.vs = vs
+        # Vertex touches a non-quad face.
+        self.v_nonquad = np.zeros(self.nv, bool)
+        self.v_nonquad[self.origin[self.ksize != 4]] = True
+        self.all_quads = bool(np.all(self.fsize == 4))
+
+    # -- levels -------------------------------------------------------------------------------
+    def level(self, es: np.ndarray, vs: np.ndarray) -> _Level:
+        sharp = es > 0
+        count = np.bincount(self.edges[sharp].ravel(), minlength=self.nv)
+        vsharp = vs > 0
+        rule = np.where(vsharp | (count > 2), CORNER, np.minimum(count, 2)).astype(np.int8)
+        ends = np.full((self.nv, 2), -1, np.int64)
+        se = np.flatnonzero(sharp)
+        if se.size:
+            vv = np.concatenate([self.edges[se, 0], self.edges[se, 1]])
+            ee = np.concatenate([se, se])
+            order = np.argsort(vv, kind="stable")
+            vv, ee = vv[order], ee[order]
+            first = np.searchsorted(vv, np.arange(self.nv))
+            crease = np.flatnonzero(rule == CREASE)
+            ends[crease, 0] = ee[first[crease]]
+            ends[crease, 1] = ee[first[crease] + 1]
+        return _Level(sharp, vsharp, rule, ends)
+
+    @cached_property
+    def parent(self) -> _Level:
+        return self.level(self.es, self.vs)
+
+    @cached_property
+    def child(self) -> _Level:
+        return self.level(_decrement(self.es), _decrement(self.vs))
+
+    # -- half-edge helpers --------------------------------------------------------------------
+    @cached_property
+    def face_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(h, h') for every half-edge h and every half-edge h' of the same face."""
+        k = self.ksize
+        h = np.repeat(np.arange(self.H), k)
+        start = np.repeat(np.cumsum(k) - k, k)
+        local = np.arange(h.size) - start
+        base = self.mesh.face_offsets[self.face[h]]
+        return h, base + local
+
+    def other(self, h: np.ndarray) -> np.ndarray:
+        """The other end of half-edge h's edge, seen from origin(h)."""
+        return self.dest[h]
+
+    @cached_property
+    def regular_line_vertex(self) -> np.ndarray:
+        """(v,) bool: straight lines continue through v (interior, valence 4, quads, untagged)."""
+        return (
+            ~self.v_boundary
+            & (self.valence == 4)
+            & ~self.v_nonquad
+            & (self.parent.rule == SMOOTH)
+            & (self.n_faces_at == 4)
+        )
+
+    @cached_property
+    def ahead(self) -> np.ndarray:
+        """(H,) interval beyond dest(h) on h's straight line; h's own where there is no line."""
+        out = self.d_h.copy()
+        b = self.dest
+        ok = self.regular_line_vertex[b]
+        hs = np.flatnonzero(ok)
+        c = self.nxt[self.twin[self.nxt[hs]]]
+        out[hs] = self.d_h[c]
+        return out
+
+    def ahead_back(self, h: np.ndarray) -> np.ndarray:
+        """Interval beyond origin(h), backwards along h (through the twin; own interval on a
+        boundary)."""
+        t = self.twin[h]
+        return np.where(t >= 0, self.ahead[np.maximum(t, 0)], self.d_h[h])
+
+    def crease_beyond(self, lev: _Level, e: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Interval beyond vertex v along the crease curve through sharp edge e."""
+        e0, e1 = lev.crease_edges[v, 0], lev.crease_edges[v, 1]
+        other = np.where(e0 == e, e1, e0)
+        through = lev.rule[v] == CREASE
+        return np.where(through, self.d_e[np.maximum(other, 0)], self.d_e[e])
+
+    # -- sectors (seed rules) -----------------------------------------------------------------
+    def theta_at(self, lev: _Level, h: np.ndarray) -> np.ndarray:
+        """BLZ's theta at origin(h) for the untagged edge of h (NaN where origin is untagged)."""
+        into = self.twin[self.prv]  # corner h is linked to the corner across edge prev(h)
+        link = (into >= 0) & ~lev.sharp[self.eoh[self.prv]]
+        src = np.flatnonzero(link)
+        g = sp.coo_matrix((np.ones(src.size), (src, into[src])), shape=(self.H, self.H))
+        _, label = connected_components(g, directed=False)
+        m = np.bincount(label)
+        alpha = np.bincount(label, weights=math.pi * (self.ksize - 2) / self.ksize)
+        lab = label[h]
+        rule = lev.rule[self.origin[h]]
+        theta = np.full(h.size, np.nan)
+        theta = np.where(rule == DART, 2 * math.pi / m[lab], theta)
+        theta = np.where(rule == CREASE, math.pi / m[lab], theta)
+        theta = np.where(rule == CORNER, alpha[lab] / m[lab], theta)
+        return theta
+
+
+# ------------------------------------------------------------------------------------------
+# Rows
+
+
+def _face_rows(ctx: _Context, rows: _Rows, faces_mask: np.ndarray) -> None:
+    """Face points: centroid (uniform, non-quads) or the tensor product of the curve edge rules
+    (non-uniform quads: the bilinear form of seed 000 eq. 18 with knot-insertion weights)."""
+    h = np.flatnonzero(faces_mask[ctx.face])
+    if ctx.uniform:
+        rows.add(ctx.face[h], ctx.origin[h], 1.0 / ctx.ksize[h])
+        return
+    nonquad = ctx.ksize[h] != 4
+    hn = h[nonquad]
+    rows.add(ctx.face[hn], ctx.origin[hn], 1.0 / ctx.ksize[hn])
+    f = np.unique(ctx.face[h[~nonquad]])
+    h0 = ctx.mesh.face_offsets[f]
+    h1, h2, h3 = h0 + 1, h0 + 2, h0 + 3
+    # u: along h0 (v0 -> v1) and h2 (v2 -> v3); v: along h1 (v1 -> v2) and h3 (v3 -> v0).
+    du = ctx.d_h[h0]
+    du_left = 0.5 * (ctx.ahead_back(h0) + ctx.ahead[h2])
+    du_right = 0.5 * (ctx.ahead[h0] + ctx.ahead_back(h2))
+    dv = ctx.d_h[h1]
+    dv_bottom = 0.5 * (ctx.ahead_back(h1) + ctx.ahead[h3])
+    dv_top = 0.5 * (ctx.ahead[h1] + ctx.ahead_back(h3))
+    a_left, a_right = curve_edge_weights(du_left, du, du_right)
+    b_bottom, b_top = curve_edge_weights(dv_bottom, dv, dv_top)
+    o = ctx.origin
+    rows.add(f, o[h0], a_left * b_bottom)
+    rows.add(f, o[h1], a_right * b_bottom)
+    rows.add(f, o[h2], a_right * b_top)
+    rows.add(f, o[h3], a_left * b_top)
+
+
+def _cc_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray) -> None:
+    """Catmull-Clark's smooth edge point (a + b + F_0 + F_1) / 4 (face points as centroids)."""
+    if e.size == 0:
+        return
+    sc = np.zeros(ctx.ne)
+    sc[e] = scale
+    row_e = ctx.nf + e
+    rows.add(row_e, ctx.edges[e, 0], 0.25 * scale)
+    rows.add(row_e, ctx.edges[e, 1], 0.25 * scale)
+    ph, php = ctx.face_pairs
+    sel = np.flatnonzero(sc[ctx.eoh[ph]] != 0)
+    ph, php = ph[sel], php[sel]
+    rows.add(ctx.nf + ctx.eoh[ph], ctx.origin[php], sc[ctx.eoh[ph]] * 0.25 / ctx.ksize[ph])
+
+
+def _tensor_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray) -> None:
+    """Non-uniform smooth edge point between two quads: the curve edge rule along the edge times
+    the curve vertex rule across it (midpoint knot insertion)."""
+    if e.size == 0:
+        return
+    h = ctx.topo.edge_halfedge[e]
+    t = ctx.twin[h]
+    a, b = ctx.origin[h], ctx.dest[h]
+    wa, wb = curve_edge_weights(ctx.ahead[t], ctx.d_h[h], ctx.ahead[h])
+    nh, nt = ctx.nxt[h], ctx.nxt[t]
+    w_f, w_mid, w_g = curve_vertex_weights(ctx.ahead[nh], ctx.d_h[nh], ctx.d_h[nt], ctx.ahead[nt])
+    c, x = ctx.dest[nh], ctx.dest[ctx.nxt[nh]]  # face of h: a, b, c, x
+    y, z = ctx.dest[nt], ctx.dest[ctx.nxt[nt]]  # face of t: b, a, y, z
+    row = ctx.nf + e
+    rows.add(row, a, scale * wa * w_mid)
+    rows.add(row, b, scale * wb * w_mid)
+    rows.add(row, c, scale * wb * w_f)
+    rows.add(row, x, scale * wa * w_f)
+    rows.add(row, y, scale * wa * w_g)
+    rows.add(row, z, scale * wb * w_g)
+
+
+def _blz_edge_correction(ctx: _Context, rows: _Rows, lev: _Level, e: np.ndarray, scale) -> None:
+    """BLZ's modification next to tagged vertices, as a correction of the standard rule:
+    ``(3/8 - gamma)(tagged end - other end)`` (mean of the two when both ends are tagged)."""
+    if e.size == 0:
+        return
+    h = ctx.topo.edge_halfedge[e]
+    t = ctx.twin[h]
+    a, b = ctx.origin[h], ctx.dest[h]
+    tag_a, tag_b = lev.rule[a] != SMOOTH, lev.rule[b] != SMOOTH
+    both = np.where(tag_a & tag_b, 0.5, 1.0)
+    delta_a = np.where(tag_a, 0.375 - blz_gamma(ctx.theta_at(lev, h)), 0.0)
+    delta_b = np.where(tag_b, 0.375 - blz_gamma(ctx.theta_at(lev, t)), 0.0)
+    corr = scale * both * (delta_a - delta_b)
+    row = ctx.nf + e
+    rows.add(row, a, corr)
+    rows.add(row, b, -corr)
+
+
+def _blz_deltas(ctx: _Context, lev: _Level, e: np.ndarray) -> np.ndarray:
+    h = ctx.topo.edge_halfedge[e]
+    t = ctx.twin[h]
+    out = np.zeros(e.size)
+    for hh in (h, t):
+        tagged = lev.rule[ctx.origin[hh]] != SMOOTH
+        out = np.maximum(out, np.where(tagged, np.abs(0.375 - blz_gamma(ctx.theta_at(lev, hh))), 0.0))
+    return out
+
+
+def _sharp_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray, seed: bool) -> None:
+    """Crease edge point: midpoint (uniform), or the curve edge rule along the crease curve."""
+    if e.size == 0:
+        return
+    a, b = ctx.edges[e, 0], ctx.edges[e, 1]
+    row = ctx.nf + e
+    if ctx.uniform or not seed:
+        rows.add(row, a, 0.5 * scale)
+        rows.add(row, b, 0.5 * scale)
+        return
+    lev = ctx.parent
+    wa, wb = curve_edge_weights(ctx.crease_beyond(lev, e, a), ctx.d_e[e], ctx.crease_beyond(lev, e, b))
+    rows.add(row, a, wa * scale)
+    rows.add(row, b, wb * scale)
+
+
+def _cc_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+    """Catmull-Clark smooth vertex: (n-2)/n V + (sum of edge neighbours + sum of face points)/n^2."""
+    if v.size == 0:
+        return
+    n = ctx.valence[v].astype(np.float64)
+    row = ctx.nf + ctx.ne + v
+    rows.add(row, v, scale * (n - 2.0) / n)
+    sc = np.zeros(ctx.nv)
+    sc[v] = scale
+    hs = np.flatnonzero(sc[ctx.origin] != 0)
+    o = ctx.origin[hs]
+    nn = ctx.valence[o].astype(np.float64)
+    rows.add(ctx.nf + ctx.ne + o, ctx.dest[hs], sc[o] / nn**2)
+    ph, php = ctx.face_pairs
+    sel = np.flatnonzero(sc[ctx.origin[ph]] != 0)
+    ph, php = ph[sel], php[sel]
+    o = ctx.origin[ph]
+    nn = ctx.valence[o].astype(np.float64)
+    rows.add(ctx.nf + ctx.ne + o, ctx.origin[php], sc[o] / (nn**2 * ctx.ksize[ph]))
+
+
+def _tensor_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+    """Non-uniform regular vertex (valence 4, quads): product of the curve vertex rules along the
+    two lines of spokes 0-2 and 1-3."""
+    if v.size == 0:
+        return
+    t = ctx.topo
+    s0 = t.outgoing[v]
+    s1 = t.rotate(s0)
+    s2 = t.rotate(s1)
+    s3 = t.rotate(s2)
+    d = [ctx.d_h[s] for s in (s0, s1, s2, s3)]
+    a = [ctx.ahead[s] for s in (s0, s1, s2, s3)]
+    mA, cA, pA = curve_vertex_weights(a[2], d[2], d[0], a[0])  # E_2 - V - E_0
+    mB, cB, pB = curve_vertex_weights(a[3], d[3], d[1], a[1])  # E_3 - V - E_1
+    E = [ctx.dest[s] for s in (s0, s1, s2, s3)]
+    F = [ctx.dest[ctx.nxt[s]] for s in (s0, s1, s2, s3)]  # F_i between spokes i and i+1
+    row = ctx.nf + ctx.ne + v
+    rows.add(row, v, scale * cA * cB)
+    rows.add(row, E[0], scale * pA * cB)
+    rows.add(row, E[2], scale * mA * cB)
+    rows.add(row, E[1], scale * cA * pB)
+    rows.add(row, E[3], scale * cA * mB)
+    rows.add(row, F[0], scale * pA * pB)
+    rows.add(row, F[1], scale * mA * pB)
+    rows.add(row, F[2], scale * mA * mB)
+    rows.add(row, F[3], scale * pA * mB)
+
+
+def _crease_vertex_rows(ctx: _Context, rows: _Rows, lev: _Level, v: np.ndarray, scale, seed: bool) -> None:
+    """Crease vertex: 3/4 V + 1/8 (ends) uniform; the curve vertex rule along the crease curve
+    (seed 000 eq. 11) for non-uniform intervals."""
+    if v.size == 0:
+        return
+    e0, e1 = lev.crease_edges[v, 0], lev.crease_edges[v, 1]
+    end0 = np.where(ctx.edges[e0, 0] == v, ctx.edges[e0, 1], ctx.edges[e0, 0])
+    end1 = np.where(ctx.edges[e1, 0] == v, ctx.edges[e1, 1], ctx.edges[e1, 0])
+    row = ctx.nf + ctx.ne + v
+    if ctx.uniform or not seed:
+        w0, wc, w1 = 0.125, 0.75, 0.125
+    else:
+        w0, wc, w1 = curve_vertex_weights(
+            ctx.crease_beyond(lev, e0, end0), ctx.d_e[e0], ctx.d_e[e1], ctx.crease_beyond(lev, e1, end1)
+        )
+    rows.add(row, end0, scale * w0)
+    rows.add(row, v, scale * wc)
+    rows.add(row, end1, scale * w1)
+
+
+# ------------------------------------------------------------------------------------------
+# Extraordinary points (non-uniform): eigen-polyhedron rules
+
+
+def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str):
+    """Rows of the [LFS16] local matrix around every untagged EP: {row: (cols, weights)} lists,
+    averaged where two EPs claim one row."""
+    from . import eigen_polyhedron as eig
+
+    claims: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for v in eps.tolist():
+        ring = ctx.topo.one_ring(v)
+        n = ring.size
+        d = ctx.d_h[ring]
+        try:
+            m = eig.local_subdivision_matrix(d, angles=angles)
+        except ValueError as exc:
+            raise UnsupportedError(
+                f"eigen-polyhedron rule undefined at extraordinary vertex {v} (valence {n}, "
+                f"spoke intervals {d.tolist()}): {exc}",
+                ctx.mesh.where("vertex", v),
+            ) from None
+        cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
+        targets = np.concatenate(
+            [[ctx.nf + ctx.ne + v], ctx.nf + ctx.eoh[ring], ctx.face[ring]]
+        )
+        for i, row in enumerate(targets.tolist()):
+            claims.setdefault(row, []).append((cols, m[i]))
+    return claims
+
+
+# ------------------------------------------------------------------------------------------
+# The operator
+
+
+def _check_options(rules: str, angles: str) -> None:
+    if rules not in RULE_SETS:
+        raise UnsupportedError(f"unknown subdivision rules '{rules}' (choose {' or '.join(RULE_SETS)})")
+    if angles not in ANGLE_CHOICES:
+        raise UnsupportedError(f"unknown eigen-polyhedron angles '{angles}' (choose {' or '.join(ANGLE_CHOICES)})")
+
+
+def _refuse_nonuniform(ctx: _Context) -> None:
+    si = ctx.topo.strip_interval
+    e = int(np.flatnonzero(si[ctx.topo.edge_strip] != si[ctx.topo.edge_strip[0]])[0])
+    a, b = ctx.edges[e]
+    raise KnotError(
+        f"opensubdiv rules need uniform knot intervals, but edge {a}-{b} has {ctx.d_e[e]:g} "
+        f"and edge {ctx.edges[0, 0]}-{ctx.edges[0, 1]} has {ctx.d_e[0]:g} (use --rules seed)",
+        ctx.mesh.where("interval", (int(a), int(b))),
+    )
+
+
+def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
+    seed = rules == "seed"
+    if rules == "opensubdiv" and not ctx.uniform:
+        _refuse_nonuniform(ctx)
+    nonuniform = not ctx.uniform
+    par = ctx.parent
+    rows = _Rows()
+    n_out = ctx.nf + ctx.ne + ctx.nv
+
+    # Extraordinary points handled by the eigen-polyhedron (non-uniform only).
+    ep_claims: dict = {}
+    if nonuniform:
+        _check_nonuniform_support(ctx, seed)
+        eps = np.flatnonzero(
+            ~ctx.v_boundary & (ctx.valence != 4) & (par.rule == SMOOTH) & ctx.topo.vertex_is_used
+        )
+        ep_claims = _ep_rows(ctx, eps, angles) if eps.size else {}
+    claimed = np.zeros(n_out, bool)
+    if ep_claims:
+        claimed[np.fromiter(ep_claims.keys(), np.int64)] = True
+
+    # Face points.
+    _face_rows(ctx, rows, ~claimed[: ctx.nf])
+
+    # Edge points: w = min(s, 1) sharp + (1 - w) smooth (scheme.h ComputeEdgeVertexMask).
+    w = np.minimum(ctx.es, 1.0)
+    free_e = ~claimed[ctx.nf : ctx.nf + ctx.ne]
+    sharp_e = np.flatnonzero((w > 0) & free_e)
+    _sharp_edge_rows(ctx, rows, sharp_e, w[sharp_e], seed)
+    smooth_e = np.flatnonzero((w < 1) & free_e)
+    scale = 1.0 - w[smooth_e]
+    if nonuniform:
+        near_nonquad = ctx.v_nonquad[ctx.edges[smooth_e, 0]] & ctx.v_nonquad[ctx.edges[smooth_e, 1]]
+        near_nonquad |= _edge_touches_nonquad(ctx, smooth_e)
+        _cc_edge_rows(ctx, rows, smooth_e[near_nonquad], scale[near_nonquad])
+        _tensor_edge_rows(ctx, rows, smooth_e[~near_nonquad], scale[~near_nonquad])
+    else:
+        _cc_edge_rows(ctx, rows, smooth_e, scale)
+    if seed:
+        # BLZ gamma: parent tags for smooth edges, child tags for the smooth part of a
+        # fractional edge (whose own tag goes away).
+        frac = (w[smooth_e] > 0)
+        _blz_edge_correction(ctx, rows, par, smooth_e[~frac], scale[~frac])
+        if frac.any():
+            _blz_edge_correction(ctx, rows, ctx.child, smooth_e[frac], scale[frac])
+
+    # Vertex points: parent rule, blended with the child rule (scheme.h ComputeVertexVertexMask).
+    chi = ctx.child
+    p_rule, c_rule = par.rule, chi.rule
+    pw = _fractional_weight(ctx)
+    blend = (p_rule > DART) & (c_rule != p_rule)
+    sm_scale = np.where(p_rule <= DART, 1.0, np.where(blend & (c_rule <= DART), 1.0 - pw, 0.0))
+    parent_scale = np.where(p_rule <= DART, 0.0, np.where(blend, pw, 1.0))
+    child_scale = np.where(blend & (c_rule > DART), 1.0 - pw, 0.0)
+    used = ctx.topo.vertex_is_used
+    free_v = ~claimed[ctx.nf + ctx.ne :] & used
+    vs_ = np.flatnonzero((sm_scale > 0) & free_v)
+    if nonuniform:
+        cc = ctx.v_nonquad[vs_]
+        odd = vs_[~cc & ((ctx.valence[vs_] != 4) | ctx.v_boundary[vs_])]
+        if odd.size:
+            v = int(odd[0])
+            raise UnsupportedError(
+                f"non-uniform intervals at vertex {v} (valence {int(ctx.valence[v])}) whose "
+                f"semi-sharp tags fade to the smooth rule: not implemented",
+                ctx.mesh.where("vertex", v),
+            )
+        _cc_vertex_rows(ctx, rows, vs_[cc], sm_scale[vs_[cc]])
+        _tensor_vertex_rows(ctx, rows, vs_[~cc], sm_scale[vs_[~cc]])
+    else:
+        _cc_vertex_rows(ctx, rows, vs_, sm_scale[vs_])
+    # parent crease / corner part
+    pc = np.flatnonzero((p_rule == CREASE) & (parent_scale > 0) & free_v)
+    _crease_vertex_rows(ctx, rows, par, pc, parent_scale[pc], seed)
+    pk = np.flatnonzero((p_rule == CORNER) & (parent_scale > 0) & free_v)
+    rows.add(ctx.nf + ctx.ne + pk, pk, parent_scale[pk])
+    # child crease / corner part (transition)
+    cc_ = np.flatnonzero((c_rule == CREASE) & (child_scale > 0) & free_v)
+    _crease_vertex_rows(ctx, rows, chi, cc_, child_scale[cc_], seed)
+    ck = np.flatnonzero((c_rule == CORNER) & (child_scale > 0) & free_v)
+    rows.add(ctx.nf + ctx.ne + ck, ck, child_scale[ck])
+    # isolated vertices stay where they are
+    iso = np.flatnonzero(~used)
+    rows.add(ctx.nf + ctx.ne + iso, iso, 1.0)
+
+    # EP rows (mean of the claims).
+    for row, claims in ep_claims.items():
+        k = len(claims)
+        for cols, wts in claims:
+            rows.add(np.full(cols.size, row), cols, wts / k)
+    return rows.matrix((n_out, ctx.nv))
+
+
+def _edge_touches_nonquad(ctx: _Context, e: np.ndarray) -> np.ndarray:
+    h = ctx.topo.edge_halfedge[e]
+    t = ctx.twin[h]
+    return (ctx.ksize[h] != 4) | ((t >= 0) & (ctx.ksize[np.maximum(t, 0)] != 4))
+
+
+def _fractional_weight(ctx: _Context) -> np.ndarray:
+    """Crease::ComputeFractionalWeightAtVertex (uniform creasing), (v,) float64."""
+    total = np.zeros(ctx.nv)
+    count = np.zeros(ctx.nv)
+    vt = (ctx.vs > 0) & (_decrement(ctx.vs) <= 0)
+    total[vt] += ctx.vs[vt]
+    count[vt] += 1
+    et = (ctx.es > 0) & (ctx.es <= 1.0)
+    for k in (0, 1):
+        np.add.at(total, ctx.edges[et, k], ctx.es[et])
+        np.add.at(count, ctx.edges[et, k], 1.0)
+    return np.where(count > 0, np.minimum(1.0, total / np.maximum(count, 1.0)), 0.0)
+
+
+def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
+    """Refuse what the non-uniform rules here do not define (module docstring)."""
+    # Non-quad faces: the child's strips must stay consistent.
+    h = np.flatnonzero(ctx.ksize != 4)
+    bad = h[ctx.d_h[ctx.nxt[h]] != ctx.d_h[ctx.prv[h]]]
+    if bad.size:
+        f = int(ctx.face[bad[0]])
+        raise UnsupportedError(
+            f"face {f} has {int(ctx.fsize[f])} sides and unequal knot intervals: the new edges "
+            f"inside it would join strips of different intervals (give its edges equal "
+            f"intervals, alternating for even sides)",
+            ctx.mesh.where("face", f),
+        )
+    for lev in (ctx.parent, ctx.child):
+        darts = np.flatnonzero((lev.rule == DART) & (ctx.valence != 4))
+        if darts.size:
+            v = int(darts[0])
+            raise UnsupportedError(
+                f"non-uniform intervals at dart vertex {v} of valence {int(ctx.valence[v])}: "
+                f"seed 000's dart eigen-polyhedron is not implemented",
+                ctx.mesh.where("vertex", v),
+            )
+        smooth_e = np.flatnonzero(~lev.sharp & ~_edge_touches_nonquad(ctx, np.arange(ctx.ne)))
+        if smooth_e.size:
+            delta = _blz_deltas(ctx, lev, smooth_e)
+            bad = np.flatnonzero(delta > 1e-12)
+            if bad.size:
+                e = int(smooth_e[bad[0]])
+                a, b = (int(x) for x in ctx.edges[e])
+                raise UnsupportedError(
+                    f"non-uniform intervals next to a tagged vertex whose sector is not regular "
+                    f"(edge {a}-{b}, BLZ theta != pi/2): seed 000's generalised eigen-polyhedra "
+                    f"for crease/corner sectors are not implemented",
+                    ctx.mesh.where("vertex", a),
+                )
+
+
+# ------------------------------------------------------------------------------------------
+# The refined mesh and its tags
+
+
+def _child_mesh(ctx: _Context, points: np.ndarray, rules: str) -> ControlMesh:
+    nf, ne = ctx.nf, ctx.ne
+    h = np.arange(ctx.H)
+    quads = np.stack(
+        [nf + ne + ctx.origin, nf + ctx.eoh, ctx.face, nf + ctx.eoh[ctx.prv]], axis=1
+    ).astype(np.int64)
+    n_child = nf + ne + ctx.nv
+    # Child edges: halves of parent edges (interval d/2, sharpness decremented) and the edges
+    # F(face h) - E(edge h) inside a face (interval of the parallel parent edge, next(h), / 2).
+    a, b = ctx.edges[:, 0], ctx.edges[:, 1]
+    half_pairs = np.concatenate(
+        [np.stack([nf + ne + a, nf + np.arange(ne)], 1), np.stack([nf + ne + b, nf + np.arange(ne)], 1)]
+    )
+    half_d = np.concatenate([ctx.d_e, ctx.d_e]) / 2.0
+    inner_pairs = np.stack([ctx.face, nf + ctx.eoh], 1)
+    inner_d = ctx.d_h[ctx.nxt[h]] / 2.0
+    creases = {}
+    es_child = _decrement(ctx.es)
+    parent_s = ctx.topo.edge_sharpness
+    keep = np.flatnonzero((es_child > 0) & ~ctx.e_boundary)
+    for e in keep.tolist():
+        s = float(parent_s[e]) if parent_s[e] >= INFINITELY_SHARP else float(es_child[e])
+        for pair in ((nf + ne + int(a[e]), nf + e), (nf + ne + int(b[e]), nf + e)):
+            creases[(min(pair), max(pair))] = s
+    corners = {}
+    for v, s in ctx.mesh.corners.items():
+        if s >= INFINITELY_SHARP:
+            corners[nf + ne + v] = float(s)
+        elif s > 1.0:
+            corners[nf + ne + v] = float(s) - 1.0
+    holes = frozenset(int(x) for x in h[np.isin(ctx.face, np.fromiter(ctx.mesh.holes, np.int64))]) if ctx.mesh.holes else frozenset()
+    child = ControlMesh(
+        vertices=np.ascontiguousarray(points, dtype=np.float64),
+        face_vertices=quads.ravel(),
+        face_offsets=np.arange(0, 4 * ctx.H + 1, 4, dtype=np.int64),
+        intervals={},
+        creases=creases,
+        corners=corners,
+        holes=holes,
+        interpolate_boundary=ctx.mesh.interpolate_boundary,
+        name=ctx.mesh.name,
+    )
+    # One interval per child strip (DESIGN 2: a value on one edge applies to its strip).
+    ct = Topology(child)
+    pairs = np.concatenate([half_pairs, inner_pairs])
+    dvals = np.concatenate([half_d, inner_d])
+    lo, hi = pairs.min(1), pairs.max(1)
+    keys = ct.edges[:, 0] * n_child + ct.edges[:, 1]
+    idx = np.searchsorted(keys, lo * n_child + hi)
+    strip = ct.edge_strip[idx]
+    first = np.full(ct.n_strips, -1, np.int64)
+    first[strip[::-1]] = np.arange(strip.size)[::-1]
+    value = dvals[first[strip]]
+    if not np.allclose(value, dvals, rtol=1e-12, atol=0):
+        raise AssertionError("child strips with two intervals (a bug: the non-quad check missed it)")
+    reps = first[first >= 0]
+    intervals = {(int(lo[i]), int(hi[i])): float(dvals[i]) for i in reps.tolist()}
+    return replace(child, intervals=intervals)
+
+
+def subdivision_operator(
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard"
+) -> tuple[sp.csr_matrix, ControlMesh]:
+    """One subdivision step: (S, refined mesh).
+
+    S: (n_faces + n_edges + n_vertices, n_vertices) CSR float64, rows sum to 1, built from
+    topology, intervals and tags only; refined points = ``S @ mesh.vertices`` (child numbering in
+    the module docstring).  The refined mesh carries the tags: intervals halved (one value per
+    strip), crease and corner sharpness decremented (infinite stays), holes' children holes,
+    interpolateboundary; its positions are ``S @ mesh.vertices``.
+    rules: "seed" (default) or "opensubdiv"; angles: "standard" or "modified" (seed 001, for
+    the eigen-polyhedron at non-uniform extraordinary points).
+    Raises KnotError for non-uniform intervals under "opensubdiv", UnsupportedError for the
+    configurations listed in the module docstring, MeshError for non-manifold input.
+    """
+    _check_options(rules, angles)
+    ctx = _Context(mesh)
+    s = _operator(ctx, rules, angles)
+    child = _child_mesh(ctx, s @ mesh.vertices, rules)
+    return s, child
+
+
+def subdivide(mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: str = "standard") -> ControlMesh:
+    """``steps`` subdivision steps; the refined control mesh with its tags."""
+    _check_options(rules, angles)
+    if steps < 0:
+        raise UnsupportedError(f"number of subdivision steps must be >= 0, got {steps}")
+    for _ in range(steps):
+        _, mesh = subdivision_operator(mesh, rules, angles)
+    return mesh

@@ -1,0 +1,360 @@
+"""Subdivision (issue 7): the sparse operator S against small, loop-based references written
+here from the rules as published (classic Catmull-Clark; OpenSubdiv's documented Catmark,
+crease and boundary rules; Biermann-Levin-Zorin as seed 000 section 2 states them), against
+OpenCASCADE's knot insertion for non-uniform regular regions, and on the OpenSubdiv shapes.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import defaultdict
+
+import numpy as np
+import pytest
+
+from patching.errors import KnotError, MeshError, UnsupportedError
+from patching.mesh import from_arrays
+from patching.obj import read_obj, write_obj
+from patching.primitives import open_grid, torus_grid
+from patching.subdivision import subdivide, subdivision_operator
+from tests.conftest import shape_files
+
+# Round-off: every reference point is a short sum of O(1) weights times coordinates of size
+# O(10); both sides add the same terms in a different order.
+TIGHT = 1e-12
+
+
+def _read(path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # creasemethod, smoothtriangles ... tags
+        return read_obj(path)
+
+
+def _manifold_shapes():
+    out = []
+    for path in shape_files("catmark_"):
+        try:
+            from patching.topology import Topology
+
+            Topology(_read(path))
+        except MeshError:
+            continue
+        out.append(path)
+    return out
+
+
+SHAPES = _manifold_shapes()
+NONMANIFOLD = [p for p in shape_files("catmark_") if p not in SHAPES]
+
+
+# ---------------------------------------------------------------------------------------------
+# The reference: one subdivision step computed point by point with dicts and loops.
+
+
+def reference_step(mesh, rules: str):
+    """New points (face points, edge points by sorted (a, b), vertex points) by the rules as
+    published; ``rules`` is "cc" (classic, tags ignored), "opensubdiv" or "blz"."""
+    P = mesh.vertices
+    faces = [list(map(int, mesh.face(f))) for f in range(mesh.n_faces)]
+    edge_faces = defaultdict(list)
+    vert_faces = defaultdict(list)
+    vert_nbrs = defaultdict(set)
+    for f, fv in enumerate(faces):
+        for i, v in enumerate(fv):
+            w = fv[(i + 1) % len(fv)]
+            edge_faces[(min(v, w), max(v, w))].append(f)
+            vert_faces[v].append(f)
+            vert_nbrs[v].add(w)
+            vert_nbrs[w].add(v)
+    tags = rules != "cc"
+
+    def edge_sharp(key):
+        if len(edge_faces[key]) == 1:
+            return math.inf
+        s = mesh.creases.get(key, 0.0) if tags else 0.0
+        return math.inf if s >= 10 else s
+
+    def vertex_sharp(v):
+        s = mesh.corners.get(v, 0.0) if tags else 0.0
+        if mesh.interpolate_boundary == 1 and len(vert_faces[v]) == 1 and len(vert_nbrs[v]) == 2:
+            s = math.inf
+        return math.inf if s >= 10 else s
+
+    def dec(s):
+        return s if math.isinf(s) else max(s - 1.0, 0.0) if s > 1 else 0.0
+
+    def rule(vs, sharp_count):
+        if vs > 0 or sharp_count > 2:
+            return "corner"
+        return ["smooth", "dart", "crease"][sharp_count]
+
+    fp = [P[fv].mean(axis=0) for fv in faces]
+
+    def key(a, b):
+        return (min(a, b), max(a, b))
+
+    def theta(a, b, child: bool):
+        """BLZ theta at tagged vertex a for the untagged edge a-b (seed 000 section 2)."""
+        sharp = lambda k: (dec(edge_sharp(k)) if child else edge_sharp(k)) > 0  # noqa: E731
+        n_sharp = sum(sharp(key(a, w)) for w in vert_nbrs[a])
+        vs = dec(vertex_sharp(a)) if child else vertex_sharp(a)
+        r = rule(vs, n_sharp)
+        if r == "smooth":
+            return None
+        # sector of the edge: faces around a reached without crossing a sharp edge
+        sector = set(edge_faces[key(a, b)])
+        todo = list(sector)
+        while todo:
+            f = todo.pop()
+            fv = faces[f]
+            i = fv.index(a)
+            for w in (fv[i - 1], fv[(i + 1) % len(fv)]):
+                if sharp(key(a, w)):
+                    continue
+                for g in edge_faces[key(a, w)]:
+                    if g not in sector:
+                        sector.add(g)
+                        todo.append(g)
+        m = len(sector)
+        if r == "dart":
+            return 2 * math.pi / m
+        if r == "crease":
+            return math.pi / m
+        alpha = sum(math.pi * (len(faces[f]) - 2) / len(faces[f]) for f in sector)
+        return alpha / m
+
+    def tagged(v, child):
+        sharp = lambda k: (dec(edge_sharp(k)) if child else edge_sharp(k)) > 0  # noqa: E731
+        vs = dec(vertex_sharp(v)) if child else vertex_sharp(v)
+        return rule(vs, sum(sharp(key(v, w)) for w in vert_nbrs[v])) != "smooth"
+
+    ep = {}
+    for (a, b), fs in edge_faces.items():
+        s = edge_sharp((a, b))
+        mid = (P[a] + P[b]) / 2
+        if s >= 1:
+            ep[(a, b)] = mid
+            continue
+        smooth = (P[a] + P[b] + fp[fs[0]] + fp[fs[1]]) / 4
+        if rules == "blz":
+            child = s > 0
+            ta, tb = tagged(a, child), tagged(b, child)
+            k = 0.5 if (ta and tb) else 1.0
+            for x, y, t in ((a, b, ta), (b, a, tb)):
+                if t:
+                    gamma = 3 / 8 - math.cos(theta(x, y, child)) / 4
+                    smooth = smooth + k * (3 / 8 - gamma) * (P[x] - P[y])
+        ep[(a, b)] = s * mid + (1 - s) * smooth
+
+    vp = np.array(P, copy=True)
+    for v in range(len(P)):
+        if not vert_faces[v]:
+            continue
+        nb = sorted(vert_nbrs[v])
+        ps = [edge_sharp(key(v, w)) for w in nb]
+        cs = [dec(s) for s in ps]
+        pv, cv = vertex_sharp(v), dec(vertex_sharp(v))
+        pr = rule(pv, sum(s > 0 for s in ps))
+        cr = rule(cv, sum(s > 0 for s in cs))
+
+        def mask(r, sharpness):
+            if r in ("smooth", "dart"):
+                n = len(nb)
+                return (n - 2) / n * P[v] + sum(P[w] for w in nb) / n**2 + sum(fp[f] for f in vert_faces[v]) / n**2
+            if r == "crease":
+                ends = [w for w, s in zip(nb, sharpness) if s > 0]
+                return 0.75 * P[v] + 0.125 * (P[ends[0]] + P[ends[1]])
+            return P[v]
+
+        pm = mask(pr, ps)
+        if pr in ("smooth", "dart") or cr == pr:
+            vp[v] = pm
+            continue
+        # Crease::ComputeFractionalWeightAtVertex, uniform creasing
+        total, count = 0.0, 0
+        if pv > 0 and cv <= 0:
+            total, count = pv, 1
+        for s in ps:
+            if 0 < s <= 1:
+                total += s
+                count += 1
+        pw = min(1.0, total / count) if count else 0.0
+        vp[v] = pw * pm + (1 - pw) * mask(cr, cs)
+    return np.array(fp), ep, vp
+
+
+def reference_points(mesh, rules):
+    fp, ep, vp = reference_step(mesh, rules)
+    edges = sorted(ep)
+    return np.concatenate([fp, np.array([ep[k] for k in edges]), vp])
+
+
+def _untagged(mesh):
+    return from_arrays(mesh.vertices, [list(mesh.face(f)) for f in range(mesh.n_faces)], name=mesh.name)
+
+
+def _is_closed(mesh):
+    from patching.topology import Topology
+
+    return not Topology(mesh).edge_is_boundary.any()
+
+
+def _size(mesh):
+    return float(np.ptp(mesh.vertices, axis=0).max())
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. Uniform Catmull-Clark on closed meshes without tags
+
+
+@pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("rules", ["seed", "opensubdiv"])
+@pytest.mark.parametrize("path", SHAPES, ids=lambda p: p.stem)
+def test_uniform_catmull_clark_on_closed_shapes(path, rules):
+    mesh = _untagged(_read(path))
+    if not _is_closed(mesh):
+        pytest.skip("open mesh: boundary rules are tested below")
+    for step in range(2):  # the first step turns n-gons into quads; the second is all-quad
+        S, child = subdivision_operator(mesh, rules=rules)
+        expected = reference_points(mesh, "cc")
+        assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * _size(mesh)
+        assert np.allclose(child.vertices, expected, rtol=0, atol=TIGHT * _size(mesh))
+        mesh = _untagged(child)
+
+
+def test_operator_rows_sum_to_one_and_depend_on_topology_only():
+    mesh = torus_grid(5, 6)
+    S, _ = subdivision_operator(mesh)
+    moved = mesh.with_positions(np.random.default_rng(1).normal(size=mesh.vertices.shape))
+    S2, child = subdivision_operator(moved)
+    assert (S != S2).nnz == 0
+    assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-15
+    assert np.allclose(child.vertices, S @ moved.vertices, atol=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. OpenSubdiv rules: boundaries, creases, corners, semi-sharp, on every manifold shape
+
+
+@pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", SHAPES, ids=lambda p: p.stem)
+def test_opensubdiv_rules_on_shapes(path):
+    mesh = _read(path)
+    for step in range(2):  # the second step sees the decremented, fractional sharpness
+        S, child = subdivision_operator(mesh, rules="opensubdiv")
+        expected = reference_points(mesh, "opensubdiv")
+        assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * _size(mesh), f"step {step}"
+        mesh = child
+
+
+@pytest.mark.parametrize("mode", [0, 1, 2])
+@pytest.mark.parametrize("sharpness", [0.0, 0.4, 1.0, 1.7, 2.5, 10.0])
+def test_opensubdiv_semi_sharp_and_boundary_modes(mode, sharpness):
+    grid = open_grid(5, 4)
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    creases = {(5, 6): sharpness, (6, 7): sharpness, (6, 10): sharpness / 2} if sharpness else {}
+    corners = {9: sharpness * 0.6} if sharpness else {}
+    mesh = from_arrays(grid.vertices, faces, creases=creases, corners=corners, interpolate_boundary=mode)
+    for _ in range(3):
+        for rules, ref in (("opensubdiv", "opensubdiv"), ("seed", "blz")):
+            S, _ = subdivision_operator(mesh, rules=rules)
+            assert np.abs(S @ mesh.vertices - reference_points(mesh, ref)).max() <= TIGHT * 5
+        mesh = subdivide(mesh, rules="opensubdiv")
+
+
+def test_opensubdiv_refuses_nonuniform_intervals():
+    mesh = torus_grid(4, 5, [1, 2, 1, 1])
+    with pytest.raises(KnotError) as err:
+        subdivision_operator(mesh, rules="opensubdiv")
+    assert "\n" not in str(err.value) and "uniform" in str(err.value)
+
+
+@pytest.mark.skipif(not NONMANIFOLD, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", NONMANIFOLD, ids=lambda p: p.stem)
+def test_nonmanifold_refused_naming_the_place(path):
+    with pytest.raises(MeshError) as err:
+        subdivision_operator(_read(path))
+    assert "non-manifold" in str(err.value) or "repeats" in str(err.value)
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. Seed rules with uniform intervals: Biermann-Levin-Zorin (seed 000 section 2)
+
+
+@pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", SHAPES, ids=lambda p: p.stem)
+def test_seed_rules_uniform_equal_blz(path):
+    mesh = _read(path)
+    for step in range(2):
+        S, child = subdivision_operator(mesh, rules="seed")
+        expected = reference_points(mesh, "blz")
+        assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * _size(mesh), f"step {step}"
+        mesh = child
+
+
+def test_blz_gamma_differs_from_opensubdiv_only_next_to_irregular_tags():
+    """A crease vertex with 3 faces on one side: theta = pi/3, gamma = 1/4 (not 3/8)."""
+    mesh = _read_shape("catmark_cube_creases0") if SHAPES else None
+    if mesh is None:
+        pytest.skip("opensubdiv-shapes folder absent")
+    s_seed, _ = subdivision_operator(mesh, rules="seed")
+    s_osd, _ = subdivision_operator(mesh, rules="opensubdiv")
+    nf = mesh.n_faces
+    diff = np.abs((s_seed - s_osd).toarray()).max(axis=1)
+    assert diff[:nf].max() == 0  # face points agree
+    assert diff.max() > 0.01  # some edge next to a tagged vertex differs
+
+
+def _read_shape(stem):
+    for p in SHAPES:
+        if p.stem == stem:
+            return _read(p)
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# Tags carried over and read back
+
+
+def test_refined_mesh_tags_and_obj_round_trip(tmp_path):
+    grid = open_grid(4, 5, u_intervals=[1, 2, 3], v_intervals=[1, 1, 2, 1])
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    mesh = from_arrays(
+        grid.vertices, faces, intervals=grid.intervals, creases={(5, 6): 2.5, (6, 7): 10.0},
+        corners={12: 1.5}, holes=[0], interpolate_boundary=2,
+    )
+    S, child = subdivision_operator(mesh)
+    from patching.topology import Topology
+
+    pt, ct = Topology(mesh), Topology(child)
+    nf, ne = mesh.n_faces, pt.n_edges
+    # every child half of parent edge e carries d_e / 2
+    for e, (a, b) in enumerate(pt.edges):
+        for v in (a, b):
+            ce = ct.edge_id(nf + ne + int(v), nf + e)
+            assert ct.edge_interval[ce] == pt.edge_interval[e] / 2
+    assert child.creases[(min(nf + ne + 5, nf + pt.edge_id(5, 6)), max(nf + ne + 5, nf + pt.edge_id(5, 6)))] == 1.5
+    assert child.creases[(min(nf + ne + 7, nf + pt.edge_id(6, 7)), max(nf + ne + 7, nf + pt.edge_id(6, 7)))] == 10.0
+    assert child.corners == {nf + ne + 12: 0.5}
+    assert child.holes == frozenset(range(4))  # the four children of face 0
+    assert child.interpolate_boundary == 2
+    path = tmp_path / "child.obj"
+    write_obj(child, path)
+    back = read_obj(path)
+    assert np.array_equal(back.face_vertices, child.face_vertices)
+    assert np.allclose(back.vertices, child.vertices, atol=0)
+    assert np.array_equal(Topology(back).edge_interval, ct.edge_interval)
+    assert back.creases == child.creases and back.corners == child.corners
+    S2, _ = subdivision_operator(back)  # the next step reads it fine
+    assert S2.shape[1] == child.n_vertices
+
+
+def test_subdivide_steps_and_bad_options():
+    mesh = torus_grid(4, 4)
+    assert subdivide(mesh, steps=2).n_faces == 16 * 16
+    assert subdivide(mesh, steps=0) is mesh
+    with pytest.raises(UnsupportedError):
+        subdivide(mesh, rules="loop")
+    with pytest.raises(UnsupportedError):
+        subdivide(mesh, angles="odd")
