@@ -105,6 +105,8 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
     topo = surface.topology
     patches = list(surface.patches())
     p = len(patches)
+    if p == 0:
+        raise BrepError("the surface has no patches")
     for name in ("corner_vertex", "side_edge", "side_reversed"):
         shape = np.shape(getattr(topo, name))
         if shape != (p, 4):
@@ -117,8 +119,8 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
     start = np.where(topo.side_reversed, np.roll(topo.corner_vertex, -1, axis=1), topo.corner_vertex)
     end = np.where(topo.side_reversed, topo.corner_vertex, np.roll(topo.corner_vertex, -1, axis=1))
     ends = np.full((topo.n_edges, 2), -1, dtype=np.int64)
-    flat = topo.side_edge.ravel()
-    ends[flat[::-1], 0], ends[flat[::-1], 1] = start.ravel()[::-1], end.ravel()[::-1]  # first use wins
+    ids, first = np.unique(np.asarray(topo.side_edge).ravel(), return_index=True)
+    ends[ids] = np.stack([start.ravel()[first], end.ravel()[first]], axis=1)  # as its first side
     bad = np.nonzero((ends[topo.side_edge, 0] != start) | (ends[topo.side_edge, 1] != end))
     if len(bad[0]):
         row, side = int(bad[0][0]), int(bad[1][0])
@@ -127,7 +129,7 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
             f"but its edge {topo.side_edge[row, side]} between {ends[topo.side_edge[row, side]].tolist()}"
         )
     for row, degree, face, net in patches:
-        if net.shape != (degree + 1, degree + 1, 3):
+        if degree < 1 or net.shape != (degree + 1, degree + 1, 3):
             raise BrepError(f"patch {row} (face {face}): net shape {net.shape}, degree {degree}")
         if not np.all(np.isfinite(net)):
             raise BrepError(f"patch {row} (face {face}): non-finite coefficients")
