@@ -3,7 +3,13 @@
 ``write_step`` writes AP214 (``AUTOMOTIVE_DESIGN``) in millimetres with the product named
 ``product_name``.  The file appears only complete: OCC writes a temporary file in the target
 directory, its status must be ``IFSelect_RetDone``, then ``os.replace`` renames it into
-place.  Two writes of one shape differ only in the FILE_NAME header's time stamp.
+place.  Two writes of one shape differ only in the header's FILE_NAME statement (its time
+stamp, and the file's base name, which it carries).
+
+OCC writes reals with 13 significant digits (``StepData_StepWriter``'s fixed FloatWriter(12)),
+so a file read back matches the shape to ~1e-13 relative, not to the last bit.  The
+``write.step.*`` settings are process-global ``Interface_Static`` values: they are set for
+one write and restored after, so writes must not run in parallel threads of one process.
 """
 
 from __future__ import annotations
@@ -23,14 +29,7 @@ from OCP.StepBasic import StepBasic_Product
 from OCP.TCollection import TCollection_HAsciiString
 from OCP.TopoDS import TopoDS_Shape
 
-try:
-    from patching.errors import InputFileError, OutputError
-except ImportError:  # pragma: no cover - the error family is written alongside this module
-    class OutputError(ValueError):  # type: ignore[no-redef]
-        """The output cannot be written where asked."""
-
-    class InputFileError(ValueError):  # type: ignore[no-redef]
-        """A file that cannot be read."""
+from patching.errors import InputFileError, OutputError
 
 __all__ = ["StepError", "write_step", "read_step"]
 
@@ -136,8 +135,10 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike, product_name: str, 
             status = writer.Write(str(tmp))
         if status != IFSelect_RetDone:
             raise StepError(f"STEPControl_Writer.Write returned {status} for {path}")
-        if tmp.stat().st_size == 0:
-            raise StepError(f"STEPControl_Writer.Write left an empty file for {path}")
+        with open(tmp, "rb") as written:
+            if os.fstat(written.fileno()).st_size == 0:
+                raise StepError(f"STEPControl_Writer.Write left an empty file for {path}")
+            os.fsync(written.fileno())  # the data is on disk before the name points at it
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
