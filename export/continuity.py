@@ -246,7 +246,7 @@ def check_continuity(shape_or_path: TopoDS_Shape | str | os.PathLike, samples_pe
         cross = np.linalg.norm(np.cross(n1, n2), axis=-1)
         dot = np.einsum("esk,esk->es", n1, n2)
         scale = np.linalg.norm(n1, axis=-1) * np.linalg.norm(n2, axis=-1)
-        # A normal below 1e-12 of the product of typical derivative sizes is degenerate.
+        # A normal shorter than ~1e-12 of the typical one (a degenerate point) gives no angle.
         typical = np.median(scale) if np.any(scale > 0) else 1.0
         angle = np.where(scale > 1e-24 * typical, np.degrees(np.arctan2(cross, dot)), 0.0)
         max_gap = float(gap.max())
