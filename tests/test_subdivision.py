@@ -358,3 +358,102 @@ def test_subdivide_steps_and_bad_options():
         subdivide(mesh, rules="loop")
     with pytest.raises(UnsupportedError):
         subdivide(mesh, angles="odd")
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. Non-uniform regular regions: midpoint knot insertion, checked against OpenCASCADE
+
+
+def _occ_refined_poles(grid, du, dv):
+    """Poles of OCC's periodic bicubic B-spline (DESIGN 2 mapping) after inserting the midpoint
+    of every knot interval with InsertUKnot / InsertVKnot."""
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array2OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    m, n, _ = grid.shape
+    poles = TColgp_Array2OfPnt(1, m, 1, n)
+    for k in range(1, m + 1):
+        for l in range(1, n + 1):
+            poles.SetValue(k, l, gp_Pnt(*map(float, grid[(k - 2) % m, (l - 2) % n])))
+
+    def knots(d):
+        values = np.concatenate([[0.0], np.cumsum(d)])
+        kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
+        for i, v in enumerate(values):
+            kk.SetValue(i + 1, float(v))
+            mm.SetValue(i + 1, 1)
+        return kk, mm, values
+
+    uk, um, uval = knots(du)
+    vk, vm, vval = knots(dv)
+    surf = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, True, True)
+    for u in (uval[:-1] + uval[1:]) / 2:
+        surf.InsertUKnot(float(u), 1, 1e-12)
+    for v in (vval[:-1] + vval[1:]) / 2:
+        surf.InsertVKnot(float(v), 1, 1e-12)
+    nu, nv = surf.NbUPoles(), surf.NbVPoles()
+    assert (nu, nv) == (2 * m, 2 * n)
+    out = np.empty((nu, nv, 3))
+    for k in range(1, nu + 1):
+        for l in range(1, nv + 1):
+            p = surf.Pole(k, l)
+            out[(k - 2) % nu, (l - 2) % nv] = p.X(), p.Y(), p.Z()
+    return out
+
+
+def _refined_ids(mesh, vid, fid):
+    """Child ids of a refined grid.  vid (m, n): parent vertex of grid point (a, b); fid (m, n):
+    parent face with corners (a, b), (a+1, b), (a+1, b+1), (a, b+1).  Returns the child vertex
+    ids (2m, 2n): [2a, 2b] vertex point, [2a+1, 2b] edge point of (a, b)-(a+1, b), [2a, 2b+1]
+    of (a, b)-(a, b+1), [2a+1, 2b+1] face point; and the child face ids (2m, 2n) in the same
+    convention (child face h sits at the corner origin(h) of its parent face)."""
+    from patching.topology import Topology
+
+    t = Topology(mesh)
+    nf, ne = mesh.n_faces, t.n_edges
+    m, n = vid.shape
+    V = np.empty((2 * m, 2 * n), np.int64)
+    Fc = np.empty((2 * m, 2 * n), np.int64)
+    for a in range(m):
+        for b in range(n):
+            A, B = (a + 1) % m, (b + 1) % n
+            V[2 * a, 2 * b] = nf + ne + vid[a, b]
+            V[2 * a + 1, 2 * b] = nf + t.edge_id(int(vid[a, b]), int(vid[A, b]))
+            V[2 * a, 2 * b + 1] = nf + t.edge_id(int(vid[a, b]), int(vid[a, B]))
+            f = int(fid[a, b])
+            V[2 * a + 1, 2 * b + 1] = f
+            corners = [vid[a, b], vid[A, b], vid[A, B], vid[a, B]]
+            cells = [(2 * a, 2 * b), (2 * a + 1, 2 * b), (2 * a + 1, 2 * b + 1), (2 * a, 2 * b + 1)]
+            for h in range(mesh.face_offsets[f], mesh.face_offsets[f + 1]):
+                Fc[cells[corners.index(mesh.face_vertices[h])]] = h
+    return V, Fc
+
+
+@pytest.mark.parametrize("seed,m,n,ratio", [(0, 5, 6, 20.0), (1, 6, 5, 5.0), (2, 7, 7, 100.0)])
+def test_nonuniform_torus_equals_occ_knot_insertion(seed, m, n, ratio):
+    rng = np.random.default_rng(seed)
+    du, dv = rng.uniform(1, ratio, m), rng.uniform(1, ratio, n)
+    mesh = torus_grid(m, n, du, dv)
+    mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
+    vid = np.arange(m * n).reshape(m, n)  # torus_grid numbering, faces likewise
+    reference = mesh.vertices.reshape(m, n, 3)
+    for step in range(2):  # the second step reads the child's own (halved) interval tags
+        S, child = subdivision_operator(mesh, rules="seed")
+        reference = _occ_refined_poles(reference, du, dv)
+        vid, fid = _refined_ids(mesh, vid, vid if step == 0 else fid)
+        # OCC's knot insertion (Boehm) and our masks are both exact rational formulas in the
+        # intervals: the difference is round-off of a few operations on coordinates of size 4.
+        assert np.abs(child.vertices[vid] - reference).max() <= 1e-12 * _size(mesh), f"step {step}"
+        mesh, du, dv = child, np.repeat(du / 2, 2), np.repeat(dv / 2, 2)
+
+
+def test_knot_insertion_check_can_fail():
+    """Swapping two intervals changes the reference: the comparison above is not vacuous."""
+    du, dv = np.array([1.0, 3.0, 1.0, 2.0, 5.0]), np.array([1.0, 2.0, 1.0, 4.0])
+    mesh = torus_grid(5, 4, du, dv)
+    _, child = subdivision_operator(mesh)
+    vid, _ = _refined_ids(mesh, np.arange(20).reshape(5, 4), np.arange(20).reshape(5, 4))
+    wrong = _occ_refined_poles(mesh.vertices.reshape(5, 4, 3), du[[1, 0, 2, 3, 4]], dv)
+    assert np.abs(child.vertices[vid] - wrong).max() > 1e-3
