@@ -457,3 +457,153 @@ def test_knot_insertion_check_can_fail():
     vid, _ = _refined_ids(mesh, np.arange(20).reshape(5, 4), np.arange(20).reshape(5, 4))
     wrong = _occ_refined_poles(mesh.vertices.reshape(5, 4, 3), du[[1, 0, 2, 3, 4]], dv)
     assert np.abs(child.vertices[vid] - wrong).max() > 1e-3
+
+
+# ---------------------------------------------------------------------------------------------
+# 4-5. Non-uniform extraordinary points: the eigen-polyhedron rules inside S
+
+
+def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0):
+    """An open disk of n sectors of rings x rings quads around one vertex of valence n.
+
+    Sector i has grid points (p, q), 0 <= p, q <= rings, (0, 0) the centre, (p, 0) on spoke i,
+    (0, q) on spoke i+1 (= sector i+1's (q, 0)).  spoke_intervals[i] goes on the strip of the
+    spoke edge (0,0)-(1,0) of sector i; the other strips get random intervals in [1, 3].
+    """
+    rng = np.random.default_rng(seed)
+    ids = {}
+    verts = [(0.0, 0.0, 0.0)]
+
+    def vid(i, p, q):
+        i %= n
+        if p == 0 and q == 0:
+            return 0
+        if q == 0:
+            key = ("spoke", i, p)
+        elif p == 0:
+            key = ("spoke", (i + 1) % n, q)
+        else:
+            key = ("in", i, p, q)
+        if key not in ids:
+            ids[key] = len(verts)
+            a0, a1 = 2 * np.pi * i / n, 2 * np.pi * (i + 1) / n
+            x = p * np.array([np.cos(a0), np.sin(a0)]) + q * np.array([np.cos(a1), np.sin(a1)])
+            verts.append((x[0], x[1], 0.3 * np.sin(p + 2 * q) + 0.1 * rng.normal()))
+        return ids[key]
+
+    faces = []
+    for i in range(n):
+        for p in range(rings):
+            for q in range(rings):
+                faces.append([vid(i, p, q), vid(i, p + 1, q), vid(i, p + 1, q + 1), vid(i, p, q + 1)])
+    intervals = {}
+    for i in range(n):
+        for p in range(rings):
+            d = spoke_intervals[i] if (p == 0 and spoke_intervals is not None) else rng.uniform(1, 3)
+            intervals[(vid(i, p, 0), vid(i, p + 1, 0))] = float(d)
+    return from_arrays(np.array(verts), faces, intervals=intervals)
+
+
+def _ring_ids(mesh, v):
+    """[V, E_0.., F_0..] of vertex v (eigen_polyhedron's order) and the child ids of the same
+    points after one step."""
+    from patching.topology import Topology
+
+    t = Topology(mesh)
+    ring = t.one_ring(v)
+    parent = np.concatenate([[v], t.dest[ring], t.dest[t.next[ring]]])
+    child = np.concatenate([[mesh.n_faces + t.n_edges + v], mesh.n_faces + t.edge_of[ring], t.face[ring]])
+    return parent, child, t.halfedge_interval[ring]
+
+
+@pytest.mark.parametrize("n", [3, 5, 6, 9])
+def test_ep_rows_are_the_eigen_polyhedron_matrix(n):
+    from patching import eigen_polyhedron as eig
+
+    rng = np.random.default_rng(n)
+    mesh = polar_disk(n, spoke_intervals=rng.uniform(1, 4, n))
+    S1, child = subdivision_operator(mesh)
+    assert np.abs(np.asarray(S1.sum(axis=1)).ravel() - 1).max() < 1e-14
+    # Level 0 and level 1: rows of the EP's 1-ring are the local matrix of the spoke intervals.
+    ep = 0
+    for m_ in (mesh, child):
+        S, nxt = subdivision_operator(m_)
+        parent, kids, d = _ring_ids(m_, ep)
+        block = S[kids][:, parent].toarray()
+        assert np.abs(np.asarray(S[kids].sum(axis=1)).ravel() - 1).max() < 1e-14
+        assert np.abs(block - eig.local_subdivision_matrix(d)).max() < 1e-15  # the same numbers
+        assert abs(S[kids].toarray().sum() - block.sum()) < 1e-12  # closed: nothing outside the ring
+        ep = int(kids[0])
+
+
+def test_ep_with_equal_spoke_intervals_is_catmull_clark():
+    """A non-uniform mesh (other strips random) whose EP has equal spokes: the EP's vertex,
+    edge and face points are Catmull-Clark's."""
+    mesh = polar_disk(5, spoke_intervals=[2.0] * 5, seed=3)
+    S, _ = subdivision_operator(mesh)
+    parent, kids, _ = _ring_ids(mesh, 0)
+    fp, ep, vp = reference_step(mesh, "cc")
+    from patching.topology import Topology
+
+    t = Topology(mesh)
+    expected = {0 + mesh.n_faces + t.n_edges: vp[0]}
+    for k in kids[1:]:
+        if k < mesh.n_faces:
+            expected[k] = fp[k]
+        else:
+            a, b = t.edges[k - mesh.n_faces]
+            expected[k] = ep[(int(a), int(b))]
+    got = S @ mesh.vertices
+    for k, x in expected.items():
+        assert np.abs(got[k] - x).max() < 1e-13
+
+
+def _subdominance(matrix):
+    ev = np.linalg.eigvals(matrix)
+    mods = np.sort(np.abs(ev))[::-1]
+    return mods
+
+
+@pytest.mark.parametrize("n", range(3, 17))
+def test_ep_eigenvalues_double_subdominant(n):
+    """The EP block of S (level 1, stationary) has 1 > lambda = lambda > |others|, for random
+    spoke intervals with ratio up to 5 (seed 002 section 3.6's range)."""
+    from patching import eigen_polyhedron as eig
+
+    lam = eig.characteristic_scale(n).lam
+    rng = np.random.default_rng(100 + n)
+    for trial in range(3):
+        mesh = polar_disk(n, rings=2, spoke_intervals=rng.uniform(1, 5, n), seed=trial)
+        _, child = subdivision_operator(mesh)
+        S, _ = subdivision_operator(child)
+        parent, kids, _ = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+        mods = _subdominance(S[kids][:, parent].toarray())
+        assert abs(mods[0] - 1) < 1e-12
+        assert abs(mods[1] - lam) < 1e-9 and abs(mods[2] - lam) < 1e-9
+        assert mods[3] < lam - 1e-6
+
+
+@pytest.mark.parametrize("n", [3, 5, 8])
+def test_limit_point_from_left_eigenvector_matches_repeated_subdivision(n):
+    from patching import eigen_polyhedron as eig
+
+    rng = np.random.default_rng(7 * n)
+    mesh = polar_disk(n, rings=2, spoke_intervals=rng.uniform(1, 5, n), seed=n)
+    _, child = subdivision_operator(mesh)
+    S, _ = subdivision_operator(child)
+    parent, kids, d = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+    local = S[kids][:, parent].toarray()
+    limit = eig.limit_point_weights(d) @ child.vertices[parent]
+    ring = child.vertices[parent]
+    lam = eig.characteristic_scale(n).lam
+    steps = int(np.ceil(np.log(1e-7) / np.log(lam)))  # lambda^steps < 1e-7
+    for _ in range(8):
+        ring = local @ ring
+    # after 8 steps the ring is within lambda^8 of the limit point, and the left eigenvector
+    # applied to it still gives the same point (to round-off)
+    size = _size(mesh)
+    assert np.abs(eig.limit_point_weights(d) @ ring - limit).max() < 1e-13 * size
+    assert np.abs(ring - limit).max() < 4 * lam**8 * size
+    for _ in range(steps - 8):
+        ring = local @ ring
+    assert np.abs(ring[0] - limit).max() < 1e-6 * size
