@@ -129,6 +129,13 @@ def test_path_through_a_file_is_an_output_error(tmp_path, cube_shape):
         write_step(cube_shape, tmp_path / "file" / "c.step", "c")
 
 
+def test_path_that_is_a_directory_is_an_output_error(tmp_path, cube_shape):
+    (tmp_path / "c.step").mkdir()
+    with pytest.raises(OutputError, match="is a directory"):
+        write_step(cube_shape, tmp_path / "c.step", "c")
+    assert [p.name for p in tmp_path.iterdir()] == ["c.step"]
+
+
 def test_reading_a_missing_or_bad_file_is_an_input_error(tmp_path):
     with pytest.raises(InputFileError):
         read_step(tmp_path / "missing.step")
