@@ -557,3 +557,23 @@ def test_cache_shares_one_solve_per_kind():
     assert angle_configuration([1.0, 2.0, 3.0, 4.0, 5.0 + 1e-9]) is not a
     with pytest.raises(ValueError):
         a.theta[0] = 1.0  # cached arrays are read-only
+
+
+@pytest.mark.parametrize("n", [3, 5, 6, 7])
+def test_printed_eq8_first_row_needs_minus_b(n):
+    """The sign warning of the module docstring, made concrete for the G1 solve: put the fan
+    into the first row of eq. (8) as printed (P_00 = 0, P^i_10 = v_i, P^i_01 = v_{i+1},
+    P^{i-1}_10 = v_{i-1}); it holds with beta = -b and fails with beta = b."""
+    d = np.array([1.0, 2.0, 1.5, 3.0, 1.0, 2.5, 1.2][:n])
+    c = angle_configuration(d)
+    phi = np.concatenate([[0.0], np.cumsum(c.theta)[:-1]])
+    v = c.lengths[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    for i in range(n):
+        dm, dp = d[i - 1], d[(i + 1) % n]
+
+        def row(beta):
+            return -d[i] * dm * v[(i + 1) % n] - d[i] * dp * v[i - 1] + beta * v[i]
+
+        scale = np.abs(d[i] * dm * v[(i + 1) % n]).max()
+        assert np.abs(row(-c.b[i])).max() < 1e-13 * scale
+        assert np.abs(row(c.b[i])).max() > 1e-3 * scale
