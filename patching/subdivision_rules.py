@@ -27,6 +27,8 @@ __all__ = [
     "curve_edge_weights",
     "curve_vertex_weights",
     "blz_gamma",
+    "curve_limit_weights",
+    "curve_derivative_weights",
     "SMOOTH",
     "DART",
     "CREASE",
@@ -73,3 +75,35 @@ def blz_gamma(theta):
     (seed 000 section 2).  The tagged end gets ``3/4 - gamma``, the other end ``gamma``, the
     four far vertices ``1/16`` each; ``theta = pi/2`` gives the standard ``3/8``."""
     return 0.375 - 0.25 * np.cos(np.asarray(theta, dtype=np.float64))
+
+
+def curve_limit_weights(a, b):
+    """Limit position of a stationary curve vertex: weights ``(w_{-1}, w_0, w_{+1})``.
+
+    After one step every vertex point has the same interval on both halves of each side:
+    ``a`` (twice) towards ``P_{-1}``, ``b`` (twice) towards ``P_{+1}``; the curve rules on
+    ``(P_{-1}, P_0, P_{+1})`` are then a closed 3x3 matrix whose left eigenvector of eigenvalue 1
+    is (derived symbolically, checked in the tests against repeated subdivision):
+    ``(b^2 / ((a+b)(2a+b)), 6ab / ((a+2b)(2a+b)), a^2 / ((a+b)(a+2b)))``; uniform: (1, 4, 1)/6,
+    the value of the cubic B-spline at the knot between the two intervals.
+    """
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return (
+        b * b / ((a + b) * (2 * a + b)),
+        6 * a * b / ((a + 2 * b) * (2 * a + b)),
+        a * a / ((a + b) * (a + 2 * b)),
+    )
+
+
+def curve_derivative_weights(a, b):
+    """Derivative of the stationary curve at its vertex with respect to the knot parameter:
+    weights on ``(P_{-1}, P_0, P_{+1})``, summing to 0.
+
+    The left eigenvector of eigenvalue 1/2 of the same 3x3 matrix,
+    ``(-b (a+2b), -2 (a-b)(a+b), a (2a+b))``, normalised so that it gives 1 on the Greville
+    abscissae ``(-a, (b-a)/3, b)`` (linear precision): divided by
+    ``(a+b)(9ab + 2(a-b)^2)/3``.  Uniform unit intervals: ``(P_{+1} - P_{-1}) / 2``.
+    """
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    scale = 3.0 / ((a + b) * (9 * a * b + 2 * (a - b) ** 2))
+    return -b * (a + 2 * b) * scale, -2 * (a - b) * (a + b) * scale, a * (2 * a + b) * scale

@@ -463,12 +463,13 @@ def test_knot_insertion_check_can_fail():
 # 4-5. Non-uniform extraordinary points: the eigen-polyhedron rules inside S
 
 
-def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0):
+def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0, outer: str = "random"):
     """An open disk of n sectors of rings x rings quads around one vertex of valence n.
 
     Sector i has grid points (p, q), 0 <= p, q <= rings, (0, 0) the centre, (p, 0) on spoke i,
     (0, q) on spoke i+1 (= sector i+1's (q, 0)).  spoke_intervals[i] goes on the strip of the
-    spoke edge (0,0)-(1,0) of sector i; the other strips get random intervals in [1, 3].
+    spoke edge (0,0)-(1,0) of sector i; the other strips get random intervals in [1, 3]
+    (outer="random") or the interval of their spoke (outer="spoke").
     """
     rng = np.random.default_rng(seed)
     ids = {}
@@ -499,7 +500,10 @@ def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0):
     intervals = {}
     for i in range(n):
         for p in range(rings):
-            d = spoke_intervals[i] if (p == 0 and spoke_intervals is not None) else rng.uniform(1, 3)
+            if spoke_intervals is not None and (p == 0 or outer == "spoke"):
+                d = spoke_intervals[i]
+            else:
+                d = rng.uniform(1, 3)
             intervals[(vid(i, p, 0), vid(i, p + 1, 0))] = float(d)
     return from_arrays(np.array(verts), faces, intervals=intervals)
 
@@ -607,3 +611,177 @@ def test_limit_point_from_left_eigenvector_matches_repeated_subdivision(n):
     for _ in range(steps - 8):
         ring = local @ ring
     assert np.abs(ring[0] - limit).max() < 1e-6 * size
+
+
+# ---------------------------------------------------------------------------------------------
+# Non-uniform sharp features (seed rules): crease curves are non-uniform cubic B-splines
+
+
+def _occ_refined_curve(points, d):
+    """Poles of OCC's periodic cubic B-spline curve (DESIGN 2 mapping) after midpoint insertion."""
+    from OCP.Geom import Geom_BSplineCurve
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array1OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    m = len(points)
+    poles = TColgp_Array1OfPnt(1, m)
+    for k in range(1, m + 1):
+        poles.SetValue(k, gp_Pnt(*map(float, points[(k - 2) % m])))
+    values = np.concatenate([[0.0], np.cumsum(d)])
+    kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
+    for i, v in enumerate(values):
+        kk.SetValue(i + 1, float(v))
+        mm.SetValue(i + 1, 1)
+    curve = Geom_BSplineCurve(poles, kk, mm, 3, True)
+    for u in (values[:-1] + values[1:]) / 2:
+        curve.InsertKnot(float(u), 1, 1e-12)
+    out = np.empty((2 * m, 3))
+    for k in range(1, 2 * m + 1):
+        p = curve.Pole(k)
+        out[(k - 2) % (2 * m)] = p.X(), p.Y(), p.Z()
+    return out
+
+
+@pytest.mark.parametrize("sharpness", [10.0, 3.0])
+def test_nonuniform_crease_curve_equals_occ_curve_knot_insertion(sharpness):
+    rng = np.random.default_rng(5)
+    m, n = 7, 6
+    du, dv = rng.uniform(1, 10, m), rng.uniform(1, 10, n)
+    grid = torus_grid(m, n, du, dv)
+    grid = grid.with_positions(grid.vertices + rng.normal(scale=0.2, size=grid.vertices.shape))
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    ring = [a * n for a in range(m)]  # the loop b = 0 along u
+    creases = {(ring[a], ring[(a + 1) % m]): sharpness for a in range(m)}
+    mesh = from_arrays(grid.vertices, faces, intervals=grid.intervals, creases=creases)
+    vid = np.arange(m * n).reshape(m, n)
+    fid = vid
+    curve = mesh.vertices[ring]
+    d = du
+    for step in range(2):  # the semi-sharp crease (s = 3) is still sharp in both steps
+        _, child = subdivision_operator(mesh)
+        vid, fid = _refined_ids(mesh, vid, fid)
+        curve = _occ_refined_curve(curve, d)
+        assert np.abs(child.vertices[vid[:, 0]] - curve).max() <= 1e-12 * _size(mesh), f"step {step}"
+        mesh, d = child, np.repeat(d / 2, 2)
+
+
+def test_nonuniform_open_grid_boundary_interpolates_corners_and_is_c0():
+    """interpolateboundary 1: corners stay, boundary points depend on boundary points only."""
+    mesh = open_grid(6, 5, u_intervals=[1, 3, 2, 5, 1], v_intervals=[2, 1, 4, 1])
+    S, child = subdivision_operator(mesh)
+    from patching.topology import Topology
+
+    t = Topology(mesh)
+    nf, ne = mesh.n_faces, t.n_edges
+    for c in (0, 4, 25, 29):
+        assert S[nf + ne + c].toarray().ravel().tolist() == np.eye(30)[c].tolist()
+    boundary = np.flatnonzero(t.vertex_is_boundary)
+    rows = np.concatenate([nf + ne + boundary, nf + np.flatnonzero(t.edge_is_boundary)])
+    assert set(S[rows].indices.tolist()) <= set(boundary.tolist())
+    ct = Topology(child)
+    # the refined boundary is a boundary again, with the halved intervals
+    assert ct.edge_is_boundary.sum() == 2 * t.edge_is_boundary.sum()
+
+
+# ---------------------------------------------------------------------------------------------
+# Limit points and tangents
+
+
+def test_limit_points_and_tangents_equal_occ_nurbs_on_nonuniform_torus():
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt, gp_Vec
+    from OCP.TColgp import TColgp_Array2OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    from patching.subdivision import limit_points, limit_tangents
+
+    m, n = 5, 6
+    rng = np.random.default_rng(0)
+    du, dv = rng.uniform(1, 5, m), rng.uniform(1, 5, n)
+    mesh = torus_grid(m, n, du, dv)
+    mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
+    grid = mesh.vertices.reshape(m, n, 3)
+    poles = TColgp_Array2OfPnt(1, m, 1, n)
+    for k in range(1, m + 1):
+        for l in range(1, n + 1):
+            poles.SetValue(k, l, gp_Pnt(*map(float, grid[(k - 2) % m, (l - 2) % n])))
+
+    def knots(d):
+        values = np.concatenate([[0.0], np.cumsum(d)])
+        kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
+        for i, v in enumerate(values):
+            kk.SetValue(i + 1, float(v))
+            mm.SetValue(i + 1, 1)
+        return kk, mm, values
+
+    uk, um, uval = knots(du)
+    vk, vm, vval = knots(dv)
+    surf = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, True, True)
+    L = limit_points(mesh).reshape(m, n, 3)
+    T = limit_tangents(mesh).reshape(m, n, 2, 3)
+    for a in range(m):
+        for b in range(n):
+            p, su, sv = gp_Pnt(), gp_Vec(), gp_Vec()
+            surf.D1(float(uval[a]), float(vval[b]), p, su, sv)
+            su, sv = np.array([su.X(), su.Y(), su.Z()]), np.array([sv.X(), sv.Y(), sv.Z()])
+            assert np.abs(L[a, b] - [p.X(), p.Y(), p.Z()]).max() < 1e-13 * _size(mesh)
+            # the two tangents are +-S_u and +-S_v (which spoke comes first is the rotation's
+            # choice), and their cross product is along S_u x S_v (the faces' orientation)
+            t0, t1 = T[a, b]
+            scale = max(np.abs(su).max(), np.abs(sv).max())
+            assert min(np.abs(t0 - s * x).max() for s in (1, -1) for x in (su, sv)) < 1e-12 * scale
+            assert min(np.abs(t1 - s * x).max() for s in (1, -1) for x in (su, sv)) < 1e-12 * scale
+            assert np.dot(np.cross(t0, t1), np.cross(su, sv)) > 0
+
+
+def _limit_cases():
+    cases = [
+        ("torus-nonuniform", lambda: torus_grid(6, 7, [1, 3, 2, 1, 5, 1], [1, 1, 4, 2, 1, 3, 2])),
+        ("disk5-nonuniform", lambda: polar_disk(5, rings=2, spoke_intervals=[1, 2, 3, 1, 4])),
+    ]
+    cases += [(p.stem, (lambda p=p: _read(p))) for p in SHAPES]
+    return cases
+
+
+@pytest.mark.parametrize("rules", ["seed", "opensubdiv"])
+@pytest.mark.parametrize("name,make", _limit_cases(), ids=[c[0] for c in _limit_cases()])
+def test_limit_points_invariant_under_subdivision(name, make, rules):
+    """The limit masks are left eigenvectors of the stationary rules: the limit of a vertex
+    computed on the mesh and on its refinement agree to round-off."""
+    from patching.subdivision import limit_points
+    from patching.topology import Topology
+
+    mesh = make()
+    if rules == "opensubdiv" and "nonuniform" in name:
+        pytest.skip("opensubdiv rules are uniform only")
+    try:
+        L = limit_points(mesh, rules)
+    except UnsupportedError as err:
+        assert "semi-sharp" in str(err)
+        pytest.skip(str(err))
+    _, child = subdivision_operator(mesh, rules)
+    ids = mesh.n_faces + Topology(mesh).n_edges + np.arange(mesh.n_vertices)
+    L2 = limit_points(child, rules)[ids]
+    assert np.abs(L2 - L).max() <= 1e-13 * _size(mesh)
+
+
+@pytest.mark.parametrize("name,make", _limit_cases()[:2] + [c for c in _limit_cases() if c[0] in ("catmark_tent_creases0", "catmark_cube_corner3", "catmark_pyramid")])
+def test_repeated_subdivision_converges_to_limit_points(name, make):
+    from patching.subdivision import limit_points
+    from patching.topology import Topology
+
+    mesh = make()
+    size = _size(mesh)
+    L = limit_points(mesh)
+    ids = np.arange(mesh.n_vertices)
+    errors = [np.abs(mesh.vertices - L).max() / size]
+    for _ in range(5):
+        _, child = subdivision_operator(mesh)
+        ids = mesh.n_faces + Topology(mesh).n_edges + ids
+        mesh = child
+        errors.append(np.abs(mesh.vertices[ids] - L).max() / size)
+    # vertex points converge at least like lambda^k, lambda <= 0.6 (Catmull-Clark's largest
+    # subdominant eigenvalue for these valences; 1/2 at regular vertices)
+    assert errors[-1] < 0.6 ** 5 * errors[0] + 1e-14
+    assert errors[-1] < errors[-2]
