@@ -6,7 +6,7 @@ intervals (regular: knot insertion), and catmark_pawn from the OpenSubdiv shapes
 about 10k faces (EPs, creases, boundaries) when the shapes folder is there.  The reference
 time in the same run is one scipy CSR matrix-vector product of the same size (nnz), our floor.
 
-Run: .venv/bin/python benchmarks/subdivide.py
+Run: .venv/bin/python benchmarks/subdivide.py [--report]  (--report adds the EP eigen-structure\nby interval ratio and seed 001's blending-function maxima, standard vs modified angles)
 """
 
 from __future__ import annotations
@@ -94,5 +94,106 @@ def main() -> None:
           "floor/ours = 3 one-column CSR products over our (n, 3) product (1 = as fast as scipy allows).")
 
 
+
+
+# ------------------------------------------------------------------------------------------
+# Measurements for the report (issue 7 acceptance): not timings, but printed beside them.
+
+
+def eigen_ratio_table(trials: int = 20) -> None:
+    """For which spoke-interval ratios does the EP block of S (= eigen_polyhedron's local
+    matrix, tests/test_subdivision.py checks they are the same numbers) have
+    1 > lambda = lambda > |others|?  Random intervals in [1, ratio], n = 3..16."""
+    from patching import eigen_polyhedron as eig
+
+    ratios = (2, 5, 10, 20, 100, 1000)
+    print("\nEP eigen-structure: cases with 1 > lambda = lambda > |others| (of %d random per cell);"
+          " 'u' = rule undefined (bilinear solve outside the unit square)" % trials)
+    for angles in ("standard", "modified"):
+        print(f"angles={angles}")
+        print("  n  " + " ".join(f"{'r<=' + str(r):>10}" for r in ratios))
+        for n in range(3, 17):
+            cells = []
+            for r in ratios:
+                rng = np.random.default_rng(1000 * n + r)
+                good = undefined = 0
+                for _ in range(trials):
+                    d = rng.uniform(1, r, n)
+                    try:
+                        m = eig.local_subdivision_matrix(d, angles=angles)
+                    except ValueError:
+                        undefined += 1
+                        continue
+                    lam = eig.characteristic_scale(n).lam
+                    mods = np.sort(np.abs(np.linalg.eigvals(m)))[::-1]
+                    if abs(mods[0] - 1) < 1e-9 and abs(mods[1] - lam) < 1e-8 and abs(mods[2] - lam) < 1e-8 and mods[3] < lam - 1e-9:
+                        good += 1
+                cells.append(f"{good:>4d}" + (f" {undefined:>2d}u" if undefined else "    "))
+            print(f"  {n:2d} " + " ".join(f"{c:>10}" for c in cells))
+
+
+def blending_maxima_table(levels: int = 5) -> None:
+    """Seed 001's claim for its modified angles: the EP's blending function has a single local
+    maximum (it tests this as "after five levels, one vertex higher than all its neighbours").
+    Measured here on the configurations of its figures, standard vs modified angles."""
+    from patching.mesh import from_arrays
+    from patching.topology import Topology
+
+    configs = {
+        "Fig 1  n=5 1,15,1,1,15": [1, 15, 1, 1, 15],
+        "Fig 6  n=3 1,10,10": [1, 10, 10],
+        "Fig 7  n=5 1,1,1e4,1e4,1e4": [1, 1, 1e4, 1e4, 1e4],
+        "Fig 8  n=7 100,100,1,1,100,100,100": [100, 100, 1, 1, 100, 100, 100],
+        "Fig 9  n=8 100,100,1,1,100,100,1,1": [100, 100, 1, 1, 100, 100, 1, 1],
+        "Fig 10 n=5 1,1,1,5,5": [1, 1, 1, 5, 5],
+        "Fig 12 n=7 5000,1,1,5000,...": [5000, 1, 1, 5000, 5000, 5000, 5000],
+    }
+    print(f"\nSeed 001 property, measured: local maxima of the EP's blending function after {levels} steps")
+    print(f"  {'configuration':38} {'standard':>9} {'modified':>9}")
+    for name, d in configs.items():
+        counts = []
+        for angles in ("standard", "modified"):
+            mesh = _blending_disk(d, from_arrays)
+            try:
+                for _ in range(levels):
+                    _, mesh = subdivision_operator(mesh, angles=angles)
+            except Exception as exc:  # noqa: BLE001 - a measurement table, report and go on
+                counts.append(type(exc).__name__)
+                continue
+            t = Topology(mesh)
+            z = mesh.vertices[:, 2]
+            best = np.full(mesh.n_vertices, -np.inf)
+            np.maximum.at(best, t.edges[:, 0], z[t.edges[:, 1]])
+            np.maximum.at(best, t.edges[:, 1], z[t.edges[:, 0]])
+            counts.append(str(int(np.sum(~t.vertex_is_boundary & (z > best)))))
+        print(f"  {name:38} {counts[0]:>9} {counts[1]:>9}")
+
+
+def _blending_disk(d, from_arrays, rings: int = 3):
+    """Polar disk of len(d) sectors of rings x rings quads; every strip crossing spoke i has
+    interval d[i]; z = 1 at the EP, 0 elsewhere (the EP's blending function)."""
+    n = len(d)
+    ids, verts = {}, [(0.0, 0.0, 1.0)]
+
+    def vid(i, p, q):
+        i %= n
+        if p == 0 and q == 0:
+            return 0
+        key = ("s", i, p) if q == 0 else ("s", (i + 1) % n, q) if p == 0 else ("in", i, p, q)
+        if key not in ids:
+            ids[key] = len(verts)
+            a0, a1 = 2 * np.pi * i / n, 2 * np.pi * (i + 1) / n
+            verts.append((p * np.cos(a0) + q * np.cos(a1), p * np.sin(a0) + q * np.sin(a1), 0.0))
+        return ids[key]
+
+    faces = [[vid(i, p, q), vid(i, p + 1, q), vid(i, p + 1, q + 1), vid(i, p, q + 1)]
+             for i in range(n) for p in range(rings) for q in range(rings)]
+    intervals = {(vid(i, p, 0), vid(i, p + 1, 0)): float(d[i]) for i in range(n) for p in range(rings)}
+    return from_arrays(np.array(verts), faces, intervals=intervals)
+
+
 if __name__ == "__main__":
     main()
+    if "--report" in sys.argv:
+        eigen_ratio_table()
+        blending_maxima_table()
