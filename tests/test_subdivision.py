@@ -785,3 +785,56 @@ def test_repeated_subdivision_converges_to_limit_points(name, make):
     # subdominant eigenvalue for these valences; 1/2 at regular vertices)
     assert errors[-1] < 0.6 ** 5 * errors[0] + 1e-14
     assert errors[-1] < errors[-2]
+
+
+# ---------------------------------------------------------------------------------------------
+# Properties: relabelling and face rotation do not change the refined surface
+
+
+def _relabel(mesh, seed):
+    """The same mesh with vertices permuted and every face's starting corner rotated."""
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(mesh.n_vertices)  # new id of old vertex
+    verts = np.empty_like(mesh.vertices)
+    verts[perm] = mesh.vertices
+    faces = []
+    for f in range(mesh.n_faces):
+        fv = [int(perm[v]) for v in mesh.face(f)]
+        k = int(rng.integers(len(fv)))
+        faces.append(fv[k:] + fv[:k])
+    key = lambda a, b: (int(perm[a]), int(perm[b]))  # noqa: E731
+    return from_arrays(
+        verts, faces,
+        intervals={key(a, b): d for (a, b), d in mesh.intervals.items()},
+        creases={key(a, b): s for (a, b), s in mesh.creases.items()},
+        corners={int(perm[v]): s for v, s in mesh.corners.items()},
+        interpolate_boundary=mesh.interpolate_boundary,
+    )
+
+
+def _sorted_points(points):
+    return points[np.lexsort(np.round(points, 9).T[::-1])]
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: polar_disk(5, rings=2, spoke_intervals=[1, 2, 3, 1, 4]),
+        lambda: torus_grid(5, 6, [1, 3, 2, 1, 5], [1, 1, 4, 2, 1, 3]),
+        lambda: _read_shape("catmark_cube_creases0"),
+        lambda: _read_shape("catmark_nonquads"),
+    ],
+    ids=["disk-nonuniform", "torus-nonuniform", "cube_creases0", "nonquads"],
+)
+def test_relabelling_and_face_rotation_invariance(make, seed):
+    mesh = make()
+    if mesh is None:
+        pytest.skip("opensubdiv-shapes folder absent")
+    rng = np.random.default_rng(seed + 10)
+    mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape))
+    other = _relabel(mesh, seed)
+    for rules in ("seed", "opensubdiv") if mesh.intervals == {} else ("seed",):
+        a = subdivide(mesh, 2, rules).vertices
+        b = subdivide(other, 2, rules).vertices
+        assert np.abs(_sorted_points(a) - _sorted_points(b)).max() < 1e-12 * _size(mesh)
