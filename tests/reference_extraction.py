@@ -1,4 +1,7 @@
-"""Regular faces: the 4x4 control stencil and the bicubic extraction operator (seed 002, 3.2).
+"""Reference (second, independent) regular-face extraction for the tests: 4x4 stencils walked on
+the half-edges and per-span blossoms, the way a B-spline textbook does it (STYLE 9: "a second,
+slower implementation in the tests"). The product uses patching.bezier_extraction.
+
 
 Stencil layout of face f = (v0, v1, v2, v3), half-edges h0..h3 (h_k from v_k to v_{k+1});
 ``stencil[f, a, b]`` is the vertex in column a (u, along h0) and row b (v, along -h3):
@@ -27,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bspline_extraction import cubic_span_extraction
-from .topology import Topology
+from tests.reference_bspline import cubic_span_extraction
+from patching.topology import Topology
 
 __all__ = ["RegularStencils", "regular_stencils", "regular_extraction_weights", "face_spans"]
 

@@ -1,0 +1,122 @@
+"""Positions of the auxiliary control points (anchors) around an EP (seed 002, section 3.5).
+
+The anchors A_i (one per face i around an EP of valence n) are free; the default rule puts
+them so that the patched surface has, at the EP, the limit point and the tangent plane of the
+eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([19], ``eigen_polyhedron``):
+
+1. A first ring [V, E_0.., F_0..] from the control points with the extraction of [32]:
+   F_i = bilinear(P_0, P_{E_i}, P_{F_i}, P_{E_{i+1}}) at (w_i, w_{i+1}),
+   w_i = (d_{i-2} + d_{i+2}) / (d_{i-2} + d_{i+2} + 2 d_i + 2 a_i), a_i the interval of the
+   edge that continues spoke i beyond E_i (d_i where E_i is not a regular interior vertex);
+   E_i = (d_{i-1} F_i + d_{i+1} F_{i-1}) / (d_{i-1} + d_{i+1});  V by eq. (3).
+2. C = L^0 [V, E, F] (dominant left eigenvector of the local subdivision matrix N).
+3. Vbar = Q Phat, the projection of [E - V, F - V] on the lambda-eigenspace of Nhat.
+4. A_i = C - C' + Vbar_{n+i}, C' = sum_i c_i Vbar_{n+i}, c_i = the weight of A_i in the patch
+   corner at the EP (eq. 3: c_i = d_{i-1} d_{i+2} / sum), so that corner is exactly C.
+
+All weights depend on intervals only; each anchor is a row over the 2n+1 mesh vertices of the
+ring (P_0 the EP, then E_i = far end of spoke i, then F_i = far corner of face i).
+
+Step 3 projects the anchors onto the tangent plane: every first-order input of the G1 solve
+at the EP then lies in that plane, which is what makes the surface's tangent plane exactly
+[19]'s, but it also drops the twist and curvature of the ring.  So at a valence-4 vertex
+forced through the EP path the bicubic B-spline is *not* reproduced unless the ring is
+planar.  ``rule="extraction"`` keeps every component instead: A_i = F_i + C - sum_j c_j F_j
+(the first-ring face points moved so that the corner is still [19]'s limit point C); it
+reproduces the B-spline at a forced valence-4 vertex with uniform intervals, and its tangent
+plane is [19]'s only approximately.  Both are offered; section 3.5's rule is the default.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from .eigen_polyhedron import limit_point_weights, tangent_projector
+from .topology import Topology
+
+__all__ = ["RULES", "anchor_weights", "anchor_matrix", "vertex_point_weights"]
+
+
+def vertex_point_weights(d: np.ndarray) -> np.ndarray:
+    """c_i = d_{i-1} d_{i+2} / sum (eq. 3): weight of the face point of face i at the vertex."""
+    w = np.roll(d, 1) * np.roll(d, -2)
+    return w / w.sum()
+
+
+RULES = ("eigen-polyhedron", "extraction")
+
+
+@lru_cache(maxsize=4096)
+def _anchor_weights(d: tuple, a: tuple, angles: str, rule: str) -> np.ndarray:
+    d_arr = np.array(d)
+    a_arr = np.array(a)
+    n = d_arr.size
+    size = 2 * n + 1
+    E = lambda i: 1 + (i % n)  # noqa: E731
+    F = lambda i: 1 + n + (i % n)  # noqa: E731
+    before = np.roll(d_arr, 2) + np.roll(d_arr, -2)
+    w = before / (before + 2 * d_arr + 2 * a_arr)
+    ring = np.zeros((size, size))  # rows: V, E_i, F_i of the first ring; columns: P_0, E_i, F_i
+    for i in range(n):
+        wi, wj = w[i], w[(i + 1) % n]
+        row = ring[F(i)]
+        row[0] += (1 - wi) * (1 - wj)
+        row[E(i)] += wi * (1 - wj)
+        row[F(i)] += wi * wj
+        row[E(i + 1)] += (1 - wi) * wj
+    for i in range(n):
+        dm, dp = d_arr[(i - 1) % n], d_arr[(i + 1) % n]
+        ring[E(i)] = (dm * ring[F(i)] + dp * ring[F(i - 1)]) / (dm + dp)
+    c = vertex_point_weights(d_arr)
+    ring[0] = sum(c[i] * ring[F(i)] for i in range(n))
+    limit = limit_point_weights(d_arr, angles=angles) @ ring  # C
+    if rule == "extraction":
+        out = ring[n + 1 :] + (limit - ring[0])[None, :]  # A_i = F_i + C - V, V = sum c_j F_j
+        out.setflags(write=False)
+        return out
+    vbar = tangent_projector(d_arr, angles=angles) @ ring  # (2n, size), rows E then F
+    faces = vbar[n:]
+    shift = c @ faces  # C'
+    out = limit[None, :] - shift[None, :] + faces
+    out.setflags(write=False)
+    return out
+
+
+def anchor_weights(d, a, angles: str = "standard", rule: str = "eigen-polyhedron") -> np.ndarray:
+    """(n, 2n+1) weights of the anchors A_0..A_{n-1} over [P_0, E_0.., F_0..]; rows sum to 1."""
+    if rule not in RULES:
+        raise ValueError(f"anchor rule must be one of {RULES}, not {rule!r}")
+    return _anchor_weights(tuple(float(x) for x in d), tuple(float(x) for x in a), angles, rule)
+
+
+def anchor_matrix(
+    topo: Topology, rings, anchor_column: np.ndarray, n_points: int, angles: str = "standard", rule: str = "eigen-polyhedron"
+) -> sp.csr_matrix:
+    """(n_anchors, n_points) sparse: the anchors as combinations of control points."""
+    n_anchors = int(np.count_nonzero(anchor_column >= 0))
+    rows, cols, vals = [], [], []
+    iv = topo.halfedge_interval
+    regular = ~topo.vertex_is_boundary & (topo.valence == 4)
+    for ring in rings.values():
+        h = ring.h
+        ends = topo.dest[h]
+        far_corner = topo.dest[topo.next[h]]
+        # a_i: interval of the edge continuing spoke i straight beyond E_i.
+        onward = topo.next[topo.twin[topo.next[h]]]
+        a = np.where(regular[ends], iv[onward], ring.d)
+        weights = anchor_weights(ring.d, a, angles, rule)
+        ids = np.concatenate([[ring.vertex], ends, far_corner])
+        anchor_rows = anchor_column[h] - n_points
+        rows.append(np.repeat(anchor_rows, ids.size))
+        cols.append(np.tile(ids, ring.n))
+        vals.append(weights.ravel())
+    if not rows:
+        return sp.csr_matrix((0, n_points))
+    out = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_anchors, n_points)
+    )
+    out.sum_duplicates()
+    return out

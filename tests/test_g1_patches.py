@@ -1,0 +1,213 @@
+"""G1 bi-quintic patches around extraordinary points (seed 002, section 3.4), checked with
+numpy evaluation independent of the constraint code, and through OpenCASCADE."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import patching
+from patching.bernstein import elevation_matrix
+from patching.evaluation import evaluate_nets
+from patching.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
+from patching.g1_patches import blue_weights, local_index
+from patching.primitives import torus_grid
+from patching.subdivision import subdivide
+from patching.topology import Topology
+from tests.conftest import SHAPES
+
+
+def quad_mesh_with_eps(kind: str) -> patching.ControlMesh:
+    """Closed all-quad meshes with EPs: one Catmull-Clark step of small polyhedra."""
+    if kind == "cube":
+        v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+        f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+        return patching.from_arrays(v, f, name="cube")
+    n = int(kind.split("-")[1])  # bipyramid-n: apexes of valence n after one step
+    ang = 2 * np.pi * np.arange(n) / n
+    v = np.vstack([np.stack([np.cos(ang), np.sin(ang), 0 * ang], 1), [[0, 0, 1.3], [0, 0, -1.3]]])
+    f = [[i, (i + 1) % n, n] for i in range(n)] + [[(i + 1) % n, i, n + 1] for i in range(n)]
+    tri = patching.from_arrays(v, f, name=kind)
+    return subdivide(tri, 1, rules="opensubdiv")
+
+
+def with_random_intervals(mesh: patching.ControlMesh, ratio: float, seed: int) -> patching.ControlMesh:
+    topo = Topology(mesh)
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(1.0, ratio, topo.n_strips)
+    first = np.unique(topo.edge_strip, return_index=True)[1]
+    iv = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
+    faces = [list(mesh.face(i)) for i in range(mesh.n_faces)]
+    return patching.from_arrays(mesh.vertices, faces, intervals=iv, name=mesh.name)
+
+
+def shared_edge_normal_jumps(surface, samples: int = 7) -> tuple[float, float]:
+    """Largest normal angle (degrees) and gap along every shared edge, evaluated with numpy:
+    a second implementation beside export.continuity (OpenCASCADE)."""
+    topo = surface.topology
+    nets = [net for _, _, _, net in surface.patches()]
+    uses: dict[int, list[tuple[int, int]]] = {}
+    for row in range(topo.side_edge.shape[0]):
+        for side in range(4):
+            uses.setdefault(int(topo.side_edge[row, side]), []).append((row, side))
+    w = np.linspace(0.02, 0.98, samples)
+    worst_angle, worst_gap = 0.0, 0.0
+    for e, pair in uses.items():
+        if len(pair) != 2:
+            continue
+        values = []
+        for row, side in pair:
+            u = 1 - w if topo.side_reversed[row, side] else w
+            s, t = {0: (u, 0 * u), 1: (1 + 0 * u, u), 2: (1 - u, 1 + 0 * u), 3: (0 * u, 1 - u)}[side]
+            p, ds, dt = evaluate_nets(nets[row][None], s, t, derivatives=True)
+            n = np.cross(ds[0], dt[0])
+            values.append((p[0], n / np.linalg.norm(n, axis=1, keepdims=True)))
+        (p1, n1), (p2, n2) = values
+        worst_gap = max(worst_gap, float(np.abs(p1 - p2).max()))
+        angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), (n1 * n2).sum(1)))
+        worst_angle = max(worst_angle, float(angle.max()))
+    return worst_angle, worst_gap
+
+
+MESHES = ["cube", "bipyramid-3", "bipyramid-5", "bipyramid-6", "bipyramid-7", "bipyramid-8"]
+
+
+@pytest.mark.parametrize("kind", MESHES)
+@pytest.mark.parametrize("ratio", [1.0, 5.0, 20.0])
+@pytest.mark.parametrize("angles", ["optimized", "uniform"])
+def test_patches_are_g1_everywhere(kind, ratio, angles):
+    mesh = with_random_intervals(quad_mesh_with_eps(kind), ratio, seed=7)
+    op = patching.build_operator(mesh, angles=angles)
+    surface = op.evaluate(mesh.vertices)
+    assert {g.degree for g in surface.groups} >= {5}
+    np.testing.assert_allclose(op.row_sums, 1.0, atol=1e-12)
+    angle, gap = shared_edge_normal_jumps(surface)
+    # Round-off: the local solves lose a few digits (condition ~1e3 at ratio 20).
+    assert gap <= 1e-12 * surface.size
+    assert angle <= 1e-7, f"normal jump {angle:.3e} degrees"
+
+
+def test_broken_constraint_is_detected():
+    """The checker can fail: perturb one green coefficient and the spoke is no longer G1."""
+    mesh = quad_mesh_with_eps("bipyramid-5")
+    surface = patching.build(mesh)
+    quintic = [g for g in surface.groups if g.degree == 5][0]
+    quintic.coefficients[0, 2, 1] += 0.05  # an interior row next to side 0 (writeable copy)
+    angle, _ = shared_edge_normal_jumps(surface)
+    assert angle > 0.1
+
+
+def test_forced_valence_4_ep_with_uniform_intervals_is_the_bicubic_bspline():
+    mesh = torus_grid(8, 7)
+    rng = np.random.default_rng(2)
+    mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.1, size=mesh.vertices.shape))
+    plain = patching.build_operator(mesh).evaluate(mesh.vertices)
+    forced = patching.build_operator(mesh, force_extraordinary=[10], anchors="extraction").evaluate(mesh.vertices)
+    cubic = {int(f): n for f, n in zip(plain.groups[0].faces, plain.groups[0].coefficients)}
+    e = elevation_matrix(3, 5)
+    quintic = [g for g in forced.groups if g.degree == 5][0]
+    assert len(quintic.faces) == 4
+    for f, net in zip(quintic.faces, quintic.coefficients):
+        elevated = np.einsum("pi,qj,ijc->pqc", e, e, cubic[int(f)])
+        np.testing.assert_allclose(net, elevated, atol=1e-12 * plain.size)
+    for f, net in zip(forced.groups[0].faces, forced.groups[0].coefficients):
+        np.testing.assert_allclose(net, cubic[int(f)], atol=1e-12 * plain.size)
+
+
+def test_faces_away_from_eps_stay_the_nurbs():
+    """A face whose 4x4 stencil has no EP keeps the regular bicubic extraction exactly."""
+    mesh = subdivide(quad_mesh_with_eps("bipyramid-5"), 2, rules="opensubdiv")  # regular faces between EPs
+    mesh = with_random_intervals(mesh, 5.0, seed=4)
+    topo = Topology(mesh)
+    op = patching.build_operator(mesh)
+    from patching.bezier_extraction import cubic_extraction
+
+    reg = cubic_extraction(topo, np.zeros(topo.n_vertices, bool))  # anchors nowhere
+    ep = np.zeros(topo.n_vertices, bool)
+    ep[topo.extraordinary] = True
+    quads = mesh.quads()
+    # vertices within one ring of an EP
+    near = ep.copy()
+    for f in np.flatnonzero(ep[quads].any(1)):
+        near[quads[f]] = True
+    far_faces = np.flatnonzero(~near[quads].any(1))
+    assert far_faces.size > 0
+    cubic = op.groups[0]
+    pos = {int(f): k for k, f in enumerate(cubic.faces)}
+    for f in far_faces:
+        ours = op.matrix[cubic.row_offset + 16 * pos[int(f)] : cubic.row_offset + 16 * pos[int(f)] + 16].toarray()
+        ref = reg.nets[16 * f : 16 * f + 16].toarray()[:, : topo.n_vertices]
+        np.testing.assert_allclose(ours, ref, atol=1e-14)
+
+
+def test_spoke_equations_reproduce_the_printed_rows_of_eq_8():
+    """G_0 and G_1 are the first two rows of eq. (8) letter for letter (with the sign of b)."""
+    dm, d, dp, b = 1.3, 2.0, 0.7, 0.4
+    g = spoke_equations(d * dm, d * dp, b, None)
+    # Printed row 1: ((d_{i-1}+d_{i+1}) d_i - b) P00 - d_i d_{i-1} P^i_01 - d_i d_{i+1} P^{i-1}_10 + b P^i_10 = 0
+    row1 = np.zeros(18)
+    row1[r_slot(0)] = (dm + dp) * d - b
+    row1[a_slot(0)] = -d * dm
+    row1[b_slot(0)] = -d * dp
+    row1[r_slot(1)] = b
+    np.testing.assert_allclose(g[0], -5 * row1, atol=1e-14)
+    # Printed row 2: b P00 + (5(d_{i-1}+d_{i+1}) d_i - 5b) P10 - 5 d d_{i-1} P^i_11 - 5 d d_{i+1} P^{i-1}_11 + 4 b P20
+    row2 = np.zeros(18)
+    row2[r_slot(0)] = b
+    row2[r_slot(1)] = 5 * (dm + dp) * d - 5 * b
+    row2[a_slot(1)] = -5 * d * dm
+    row2[b_slot(1)] = -5 * d * dp
+    row2[r_slot(2)] = 4 * b
+    np.testing.assert_allclose(g[1], -row2, atol=1e-13)
+
+
+def test_printed_last_row_of_eq_9_has_a_sign_error():
+    """Substitute a C1 (valence-4, b = 0) configuration: rows built by spoke_equations vanish,
+    the printed last row of (9) with '+5 d d_{i+1} P^{i-1}_{1,3}' does not."""
+    rng = np.random.default_rng(0)
+    dm, d, dp = 1.0, 2.0, 3.0
+    r = rng.normal(size=6)
+    da, db = rng.normal(size=6), rng.normal(size=6)
+    # C1 across the spoke: d_{i-1}(A - r) = -d_{i+1}(B - r)  (widths d_{i+1}, d_{i-1})
+    a = r + da
+    bb = r - dm / dp * da
+    values = np.concatenate([r, a, bb])
+    g = spoke_equations(d * dm, d * dp, 0.0, 0.0)
+    np.testing.assert_allclose(g @ values, 0.0, atol=1e-12)
+    printed = (5 * dm + 5 * dp) * d * values[r_slot(3)] - 5 * d * dm * values[a_slot(3)] + 5 * d * dp * values[b_slot(3)]
+    assert abs(printed) > 1e-3
+    fixed = (5 * dm + 5 * dp) * d * values[r_slot(3)] - 5 * d * dm * values[a_slot(3)] - 5 * d * dp * values[b_slot(3)]
+    assert abs(fixed) < 1e-12
+
+
+def test_blue_rule_recovers_degree_elevated_cubics():
+    rng = np.random.default_rng(1)
+    cubic = rng.normal(size=(4, 4))
+    e = elevation_matrix(3, 5)
+    quintic = e @ cubic @ e.T
+    inner = blue_weights() @ quintic.ravel()
+    np.testing.assert_allclose(inner, [quintic[2, 2], quintic[3, 2], quintic[2, 3], quintic[3, 3]], atol=1e-13)
+
+
+def test_local_index_maps_corners():
+    for corner, expected in enumerate([(0, 0), (5, 0), (5, 5), (0, 5)]):
+        assert local_index(corner, 0, 0) == expected
+        # j runs towards the next corner, m towards the previous one
+    assert local_index(1, 1, 0) == (5, 1) and local_index(1, 0, 1) == (4, 0)
+
+
+@pytest.mark.skipif(not SHAPES.is_dir(), reason="opensubdiv shapes absent")
+@pytest.mark.parametrize("name", ["catmark_cube", "catmark_lefthanded", "catmark_torus", "catmark_pyramid", "catmark_smoothtris0", "loop_icosahedron"])
+def test_closed_shapes_are_valid_g1_solids(name):
+    from export import check_continuity, to_shape
+    from patching.obj import read_obj
+
+    raw = read_obj(SHAPES / f"{name}.obj")
+    plain = patching.from_arrays(raw.vertices, [list(raw.face(i)) for i in range(raw.n_faces)], name=name)
+    mesh = plain if plain.is_quad_mesh else subdivide(plain, 1, rules="opensubdiv")
+    mesh = with_random_intervals(mesh, 20.0, seed=11)
+    surface = patching.build(mesh)
+    report = check_continuity(to_shape(surface))
+    assert report.valid and report.n_solids == 1 and report.n_free_edges == 0
+    assert report.max_gap_relative <= 1e-9
+    assert report.max_normal_jump_deg <= 1e-6
