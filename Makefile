@@ -5,8 +5,8 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.nupatch-installed
-DEMO_MODEL ?= models/torus_nonuniform.obj
-DEMO_OUT ?= build/torus_nonuniform.step
+DEMO_MODEL ?= models/l_bracket.obj
+DEMO_OUT ?= build/l_bracket.step
 
 .PHONY: demo test env clean
 

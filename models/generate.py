@@ -23,3 +23,40 @@ write_obj(
     HERE / "clamped_grid.obj",
     comment="nupatch sample: open 9 x 7 grid, zero outer strips (clamped NURBS), non-uniform inside",
 )
+
+
+def polycube_with_tight_edges(voxels, divisions, name, edge_interval):
+    """A polycube whose outermost strips along each axis carry a small interval: the knots
+    crowd towards the box edges, which rounds them more tightly (a NURBS designer's trick)."""
+    import numpy as np
+
+    from patching.mesh import from_arrays
+    from patching.primitives import polycube
+    from patching.topology import Topology
+
+    mesh = polycube(voxels, divisions, name=name)
+    topo = Topology(mesh)
+    p = mesh.vertices[topo.edges]  # (e, 2, 3)
+    axis = np.argmax(np.abs(p[:, 1] - p[:, 0]), axis=1)
+    lo = np.minimum(p[np.arange(len(p)), 0, axis], p[np.arange(len(p)), 1, axis])
+    hi = np.maximum(p[np.arange(len(p)), 0, axis], p[np.arange(len(p)), 1, axis])
+    vmin, vmax = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    outer = np.isclose(lo, vmin[axis]) | np.isclose(hi, vmax[axis])
+    intervals = {tuple(int(v) for v in topo.edges[e]): edge_interval for e in np.flatnonzero(outer)}
+    faces = [list(mesh.face(f)) for f in range(mesh.n_faces)]
+    return from_arrays(mesh.vertices, faces, intervals=intervals, name=name)
+
+
+# An L-shaped bracket: valence-3 EPs at convex corners, valence-5 at the inner corner, knots
+# crowded towards the outer edges (interval 0.3 against 1).
+write_obj(
+    polycube_with_tight_edges([(0, 0, 0), (1, 0, 0), (2, 0, 0), (0, 1, 0), (0, 2, 0)], 3, "l_bracket", 0.3),
+    HERE / "l_bracket.obj",
+    comment="nupatch sample: L-shaped polycube, EPs of valence 3 and 5, intervals 0.3 on the outer strips, 1 elsewhere",
+)
+# A square frame (genus 1): valence-3 and valence-5 EPs, all intervals 1 but the outer ones.
+write_obj(
+    polycube_with_tight_edges([(x, y, 0) for x in range(3) for y in range(3) if (x, y) != (1, 1)], 2, "square_frame", 0.5),
+    HERE / "square_frame.obj",
+    comment="nupatch sample: a square frame of 8 cubes (genus 1), EPs of valence 3 and 5, non-uniform intervals",
+)

@@ -9,7 +9,7 @@ import numpy as np
 
 from .mesh import ControlMesh, from_arrays
 
-__all__ = ["torus_grid", "open_grid"]
+__all__ = ["torus_grid", "open_grid", "polycube"]
 
 
 def torus_grid(
@@ -64,3 +64,48 @@ def open_grid(
     if v_intervals is not None:
         intervals.update({(idx(0, j), idx(0, j + 1)): float(d) for j, d in enumerate(v_intervals)})
     return from_arrays(vertices, faces, intervals=intervals, name=name)
+
+
+def polycube(voxels, divisions: int = 2, name: str = "polycube") -> ControlMesh:
+    """The boundary of a union of unit cubes as a closed quad mesh, each cube face divided
+    into divisions x divisions quads.  voxels: iterable of integer (x, y, z) cells.
+
+    Convex corners become valence-3 EPs, concave ones valence 5 or 6; faces are oriented
+    outwards.  Shared boundary edges between voxels that meet only along an edge or a corner
+    make a non-manifold surface: such voxel sets are refused by the topology checks."""
+    cells = {tuple(int(c) for c in v) for v in voxels}
+    k = int(divisions)
+    index: dict[tuple[int, int, int], int] = {}
+    vertices: list[tuple[float, float, float]] = []
+    faces: list[list[int]] = []
+
+    def vid(p):
+        if p not in index:
+            index[p] = len(vertices)
+            vertices.append(tuple(c / k for c in p))
+        return index[p]
+
+    for cell in sorted(cells):
+        for axis in range(3):
+            for sign in (-1, 1):
+                nb = list(cell)
+                nb[axis] += sign
+                if tuple(nb) in cells:
+                    continue
+                u, w = [a for a in range(3) if a != axis]
+                if sign < 0:
+                    u, w = w, u  # keep the quads counter-clockwise seen from outside
+                if axis == 1:
+                    u, w = w, u  # (x, y, z) is right-handed: the y normal flips the pair
+                base = [c * k for c in cell]
+                base[axis] += k if sign > 0 else 0
+                for i in range(k):
+                    for j in range(k):
+                        quad = []
+                        for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                            p = list(base)
+                            p[u] += i + di
+                            p[w] += j + dj
+                            quad.append(vid(tuple(p)))
+                        faces.append(quad)
+    return from_arrays(np.array(vertices, dtype=np.float64), faces, name=name)
