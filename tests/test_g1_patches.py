@@ -198,8 +198,9 @@ def test_local_index_maps_corners():
 
 @pytest.mark.skipif(not SHAPES.is_dir(), reason="opensubdiv shapes absent")
 @pytest.mark.parametrize("name", ["catmark_cube", "catmark_lefthanded", "catmark_torus", "catmark_pyramid", "catmark_smoothtris0", "loop_icosahedron"])
-def test_closed_shapes_are_valid_g1_solids(name):
-    from export import check_continuity, to_shape
+def test_closed_shapes_are_valid_g1_solids(name, tmp_path):
+    """Issue 6 acceptance, measured on the exported STEP with OpenCASCADE (DESIGN 5)."""
+    from export import check_continuity, to_step
     from patching.obj import read_obj
 
     raw = read_obj(SHAPES / f"{name}.obj")
@@ -207,7 +208,10 @@ def test_closed_shapes_are_valid_g1_solids(name):
     mesh = plain if plain.is_quad_mesh else subdivide(plain, 1, rules="opensubdiv")
     mesh = with_random_intervals(mesh, 20.0, seed=11)
     surface = patching.build(mesh)
-    report = check_continuity(to_shape(surface))
+    path = to_step(surface, tmp_path / f"{name}.step")
+    report = check_continuity(path)
     assert report.valid and report.n_solids == 1 and report.n_free_edges == 0
+    # STEP stores 13 significant digits (OCC's writer): gaps and jumps measured from the file
+    # are at that level, far inside the issue's 1e-9 of the size and 1e-6 degrees.
     assert report.max_gap_relative <= 1e-9
     assert report.max_normal_jump_deg <= 1e-6
