@@ -1,0 +1,224 @@
+"""The per-EP quality report (patching.evaluation): sample graph joins, local maxima counts and
+spoke normal jumps, each on a case where the answer is known and on one built to fail."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import patching
+from patching.evaluation import (
+    blending_maxima,
+    column_values,
+    count_local_maxima,
+    ep_quality,
+    local_maxima,
+    neighbourhood,
+    node_values,
+    sample_graph,
+    spoke_normal_jumps,
+)
+from patching.topology import Topology
+
+
+def ep_disc(n: int, intervals=None, rings: int = 3, name: str | None = None) -> patching.ControlMesh:
+    """A planar disc of quads around one EP of valence n (vertex 0), for blending functions.
+
+    Sector i (between spokes i and i+1, counter-clockwise) is a (rings + 1) x (rings + 1) grid;
+    its vertex (a, b) sits at U_i[a] e_i + U_{i+1}[b] e_{i+1}, e_i the unit vector at angle
+    2 pi i / n and U_i the partial sums of the intervals of spoke i, so the layout follows
+    the knots.  intervals: (n, rings) knot intervals; intervals[i, j] is the strip crossing
+    spoke i at its j-th edge from the EP (j = 0 is the spoke edge d_i of the paper, j = 1 the
+    a_i of its Fig. 11).  A last ring of zero-interval strips clamps the boundary (the
+    operator builds no patch on open boundaries), so the rings x rings patches per sector hold
+    the whole support of every blending function of the EP and its 2n neighbours for
+    rings >= 3 (a cubic B-spline spans 4 intervals).
+    """
+    k = rings + 1
+    d = np.ones((n, rings)) if intervals is None else np.asarray(intervals, dtype=np.float64)
+    d = np.concatenate([d, np.zeros((n, 1))], axis=1)
+    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(d, axis=1)], axis=1)
+    ang = 2 * np.pi * np.arange(n) / n
+    e = np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    ids: dict[tuple, int] = {}
+    verts = [np.zeros(3)]
+
+    def vid(i: int, a: int, b: int) -> int:
+        i %= n
+        if a == 0 and b == 0:
+            return 0
+        key = ("spoke", i, a) if b == 0 else ("spoke", (i + 1) % n, b) if a == 0 else ("face", i, a, b)
+        if key not in ids:
+            ids[key] = len(verts)
+            if key[0] == "spoke":
+                verts.append(cum[key[1], key[2]] * e[key[1]])
+            else:
+                verts.append(cum[i, a] * e[i] + cum[(i + 1) % n, b] * e[(i + 1) % n])
+        return ids[key]
+
+    faces = [
+        [vid(i, a, b), vid(i, a + 1, b), vid(i, a + 1, b + 1), vid(i, a, b + 1)]
+        for i in range(n)
+        for a in range(k)
+        for b in range(k)
+    ]
+    tags = {(vid(i, j, 0), vid(i, j + 1, 0)): float(d[i, j]) for i in range(n) for j in range(k)}
+    return patching.from_arrays(np.array(verts), faces, intervals=tags, name=name or f"ep-disc-{n}")
+
+
+def lifted(mesh: patching.ControlMesh, seed: int = 0, scale: float = 0.3) -> patching.ControlMesh:
+    """The same mesh with random heights (the operator does not see positions)."""
+    rng = np.random.default_rng(seed)
+    v = mesh.vertices.copy()
+    v[:, 2] = scale * rng.normal(size=len(v))
+    return mesh.with_positions(v)
+
+
+def test_disc_has_one_ep_and_one_patch_ring_per_sector_cell():
+    mesh = ep_disc(5)
+    topo = Topology(mesh)
+    assert topo.extraordinary.tolist() == [0]
+    op = patching.build_operator(mesh)
+    assert sum(len(g.faces) for g in op.groups) == 5 * 9
+    assert [len(g.faces) for g in op.groups if g.degree == 5] == [5]
+
+
+def test_uniform_valence_5_ep_has_one_maximum_per_blending_function():
+    mesh = ep_disc(5)
+    for angles in ("optimized", "uniform"):
+        (q,) = ep_quality(patching.build_operator(mesh, angles=angles), mesh)
+        assert q.vertex == 0 and q.valence == 5
+        assert q.local_maxima[0] == 1
+        assert set(q.local_maxima.values()) == {1}
+        assert len(q.local_maxima) == 11
+
+
+def _node_of_vertex(op, graph, mesh, vertex):
+    """The graph node of a mesh vertex (a patch corner), found through one of its faces."""
+    topo = Topology(mesh)
+    faces = np.concatenate([g.faces for g in op.groups])
+    m = graph.node.shape[1] - 1
+    nodes = set()
+    for h in topo.one_ring(vertex).tolist():
+        f = int(topo.face[h])
+        hit = np.flatnonzero(faces == f)
+        row = np.flatnonzero(graph.rows == hit[0]) if hit.size else []
+        if len(row):
+            a, b = [(0, 0), (m, 0), (m, m), (0, m)][h - int(mesh.face_offsets[f])]
+            nodes.add(int(graph.node[row[0], a, b]))
+    assert len(nodes) == 1
+    return nodes.pop()
+
+
+def test_the_eps_maximum_sits_at_the_ep_and_counts_once():
+    """The uniform EP's own function peaks at the EP, a corner of five patches: judged patch by
+    patch it has a maximum in each of them, on the joined graph exactly one."""
+    mesh = ep_disc(5)
+    op = patching.build_operator(mesh)
+    rows = np.arange(45)
+    graph = sample_graph(op, rows, 9)
+    values, gap = node_values(graph, column_values(op, [0], rows, 9))
+    assert int(np.argmax(values[:, 0])) == _node_of_vertex(op, graph, mesh, 0)
+    assert count_local_maxima(values[:, 0], graph.pairs) == 1
+    alone = 0
+    for r in rows:
+        g1 = sample_graph(op, [r], 9)
+        v1, _ = node_values(g1, column_values(op, [0], [r], 9))
+        alone += count_local_maxima(v1[:, 0], g1.pairs)
+    assert alone >= 5
+
+
+@pytest.mark.parametrize("n", [3, 5, 6])
+def test_joined_samples_agree_and_a_wrong_join_is_seen(n):
+    """Every sample joined into one node carries the same value to round-off (the surface is
+    C0): this checks the corner and side keys, including reversed sides.  Reading the sides of
+    the EP's patches in the wrong direction breaks the agreement, so the check can fail."""
+    rng = np.random.default_rng(n)
+    mesh = ep_disc(n, rng.uniform(1, 20, (n, 3)))
+    op = patching.build_operator(mesh)
+    points = np.concatenate([[0], *neighbourhood(Topology(mesh), 0)])
+    rows = np.arange(9 * n)
+    graph = sample_graph(op, rows, 11)
+    _, gap = node_values(graph, column_values(op, points, rows, 11))
+    # Values are sums of O(1) terms with weights from local solves of condition ~1e3 (ratio 20).
+    assert gap.max() <= 1e-12
+    wrong = op.topology.side_reversed.copy()
+    wrong[-n:] = ~wrong[-n:]  # the quintic patches come last
+    flipped = dataclasses.replace(op, topology=dataclasses.replace(op.topology, side_reversed=wrong))
+    bad = sample_graph(flipped, rows, 11)
+    _, bad_gap = node_values(bad, column_values(op, points, rows, 11))
+    assert bad_gap.max() > 1e-2
+
+
+def test_local_maxima_on_hand_made_values():
+    path = np.stack([np.arange(6), np.arange(1, 7)], axis=1)  # 7 nodes in a row
+    assert count_local_maxima(np.array([0, 1, 2, 3, 2, 1, 0.0]), path) == 1
+    assert count_local_maxima(np.array([0, 2, 1, 1, 3, 1, 0.0]), path) == 2
+    # A plateau (equal to round-off) is one maximum; a zero plateau is none.
+    assert count_local_maxima(np.array([0, 1, 2, 2 + 1e-15, 2, 1, 0.0]), path) == 1
+    assert count_local_maxima(np.zeros(7), path) == 0
+    # A step up too small to be more than round-off does not split a maximum ...
+    assert count_local_maxima(np.array([0, 1, 3, 3 - 1e-13, 3, 1, 0.0]), path) == 1
+    # ... a real dip does, and the heights come highest first.
+    heights = local_maxima(np.array([0, 1, 3, 2.9, 2.95, 1, 0.0]), path)
+    np.testing.assert_allclose(heights, [3.0, 2.95])
+
+
+def test_a_deliberately_bumpy_blending_function_has_two_maxima():
+    """Raise the four inner coefficients of one patch two rings away from the EP in the EP's
+    column of M (inner coefficients leave the patch boundary and so continuity alone): a second
+    hill appears and ep_quality reports it for the EP, and only for the EP."""
+    mesh = ep_disc(5)
+    op = patching.build_operator(mesh, angles="uniform")
+    cubic = op.groups[0]
+    topo = Topology(mesh)
+    # a face of ring 1 (not touching the EP, inside the EP's support)
+    quads = mesh.quads()
+    ring1 = [k for k, f in enumerate(cubic.faces) if 0 not in quads[f] and np.isin(quads[f], topo.dest[topo.one_ring(0)]).any()]
+    k = ring1[0]
+    rows = cubic.row_offset + 16 * k + np.array([5, 6, 9, 10])  # net[1..2, 1..2]
+    column = op.matrix[:, 0].toarray().ravel()
+    assert column[rows].max() < 0.1
+    bump = op.matrix.tolil()
+    for r in rows:
+        bump[r, 0] = column[r] + 1.0
+    broken = dataclasses.replace(op, matrix=bump.tocsr())
+    (q,) = ep_quality(broken, mesh)
+    assert q.local_maxima[0] == 2
+    assert 0.1 < q.second_maximum[0] <= 1.0
+    assert set(c for c, k in q.local_maxima.items() if k != 1) == {0}
+    (good,) = ep_quality(op, mesh)
+    assert good.local_maxima[0] == 1 and good.second_maximum[0] == 0.0
+
+
+def test_blending_maxima_agrees_with_the_report():
+    rng = np.random.default_rng(3)
+    mesh = ep_disc(6, rng.uniform(1, 5, (6, 3)))
+    op = patching.build_operator(mesh)
+    (q,) = ep_quality(op, mesh)
+    heights = blending_maxima(op, list(q.local_maxima))
+    assert {c: h.size for c, h in heights.items()} == q.local_maxima
+
+
+@pytest.mark.parametrize("angles", ["optimized", "uniform"])
+def test_normal_jump_of_a_g1_surface_is_round_off_and_of_a_broken_one_is_reported(angles):
+    rng = np.random.default_rng(5)
+    mesh = lifted(ep_disc(5, rng.uniform(1, 5, (5, 3))))
+    op = patching.build_operator(mesh, angles=angles)
+    (q,) = ep_quality(op, mesh)
+    # G1 to the tolerance test_g1_patches holds the construction to (local solves, cond ~1e3).
+    assert q.max_normal_jump_deg <= 1e-7
+    # Break G1 at one spoke: move a coefficient next to side 0 of the first quintic patch
+    # (net[2, 1], in the second row off the side) along z only.
+    quintic = [g for g in op.groups if g.degree == 5][0]
+    row = quintic.row_offset + 2 * 6 + 1
+    m = op.matrix.tolil()
+    m[row, :] = m[row, :].toarray() * 0
+    m[row, 0] = 1.0  # the coefficient becomes the EP's control point: the patch kinks
+    broken = dataclasses.replace(op, matrix=m.tocsr())
+    (b,) = ep_quality(broken, mesh)
+    assert b.max_normal_jump_deg > 0.5
+    jumps = spoke_normal_jumps(broken.evaluate(mesh.vertices), Topology(mesh), 0)
+    assert jumps.size == 5 and (jumps > 0.5).sum() >= 1
