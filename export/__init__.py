@@ -1,6 +1,7 @@
 """nupatch's edge to CAD: BezierSurface -> OpenCASCADE B-rep -> files (STEP).
 
 Public API (STYLE 4): ``to_shape`` (B-rep), ``to_step`` (build and write atomically),
+``to_build123d`` / ``to_cadquery`` (the B-rep as a CAD library's object),
 ``check_continuity`` (validity, gaps and normal jumps of a B-rep or STEP file).
 """
 
@@ -11,7 +12,7 @@ from pathlib import Path
 
 from patching.surface import BezierSurface
 
-__all__ = ["to_shape", "to_step", "write_step", "read_step", "check_continuity"]
+__all__ = ["to_shape", "to_step", "to_build123d", "to_cadquery", "write_step", "read_step", "check_continuity"]
 
 
 def to_shape(surface: BezierSurface):
@@ -27,6 +28,20 @@ def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
     from .step import write_step as _write_step
 
     return _write_step(to_shape(surface), path, surface.name)
+
+
+def to_build123d(source, angles: str = "optimized", anchors: str = "eigen-polyhedron"):
+    """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file."""
+    from .cad import to_build123d as _to_build123d
+
+    return _to_build123d(source, angles, anchors)
+
+
+def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhedron"):
+    """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape."""
+    from .cad import to_cadquery as _to_cadquery
+
+    return _to_cadquery(source, angles, anchors)
 
 
 def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:

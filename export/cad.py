@@ -1,0 +1,73 @@
+"""The surface as an object of a CAD scripting library: build123d and cadquery (issue 5).
+
+Both libraries wrap OpenCASCADE's ``TopoDS_Shape`` in their own classes; the environment holds
+one OCP module (README, "What gets installed"), so the B-rep of ``export.brep.to_shape`` is
+handed over as it is, without a file or a copy: a closed surface is a ``Solid``, an open one a
+``Shell``.  The source may be a ``BezierSurface``, a ``ControlMesh`` or the path of a mesh file;
+``angles`` and ``anchors`` are passed to ``patching.build`` for the last two.
+
+The libraries are imported on first use (cadquery alone takes about a second to import).
+"""
+
+from __future__ import annotations
+
+import os
+
+import patching
+from patching.mesh import ControlMesh
+from patching.surface import BezierSurface
+
+__all__ = ["as_surface", "to_build123d", "to_cadquery"]
+
+
+def as_surface(
+    source: BezierSurface | ControlMesh | str | os.PathLike,
+    angles: str = "optimized",
+    anchors: str = "eigen-polyhedron",
+) -> BezierSurface:
+    """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ)."""
+    if isinstance(source, BezierSurface):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        source = patching.read_mesh(source)
+    if isinstance(source, ControlMesh):
+        return patching.build(source, angles=angles, anchors=anchors)
+    raise TypeError(f"expected a BezierSurface, a ControlMesh or a mesh path, not {type(source).__name__}")
+
+
+def _shape(source, angles: str, anchors: str):
+    from .brep import to_shape
+
+    return to_shape(as_surface(source, angles, anchors))
+
+
+def to_build123d(
+    source: BezierSurface | ControlMesh | str | os.PathLike,
+    angles: str = "optimized",
+    anchors: str = "eigen-polyhedron",
+):
+    """A ``build123d.Solid`` (closed surface) or ``build123d.Shell`` (open surface).
+
+    The object is valid (``BRepCheck_Analyzer``, checked by ``to_shape``) and takes part in
+    build123d's booleans (``part - Box(...)``), fillets and exports like any other.
+    """
+    import build123d
+    from OCP.TopAbs import TopAbs_SOLID
+
+    shape = _shape(source, angles, anchors)
+    if shape.ShapeType() == TopAbs_SOLID:
+        return build123d.Solid(shape)
+    return build123d.Shell(shape)
+
+
+def to_cadquery(
+    source: BezierSurface | ControlMesh | str | os.PathLike,
+    angles: str = "optimized",
+    anchors: str = "eigen-polyhedron",
+):
+    """A ``cadquery.Workplane`` on the XY plane holding one ``cadquery.Solid`` (closed surface)
+    or ``cadquery.Shell`` (open surface); ``.val()`` gives that Shape."""
+    import cadquery
+
+    shape = cadquery.Shape.cast(_shape(source, angles, anchors))
+    return cadquery.Workplane("XY").add(shape)
