@@ -59,14 +59,26 @@ Choices where the seeds are silent, written once:
   edge's own interval, the mirror image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it
   a crease ending at a corner interpolates the corner and its first edge point is the
   midpoint, as seed 000's corner eigen-polyhedron (``P^1 = P^0 / 2``) requires.
-* Rows claimed by two extraordinary points (a face or edge touching both): their mean.
+* Rows claimed by two local solves (a face or edge touching two EPs or tagged vertices, as
+  every face along a crease does): their mean.  With equal claims (uniform intervals) the
+  mean is the rule itself.
+* A non-uniform smooth vertex of valence != 4 that no EP solve covers (a semi-sharp vertex
+  whose tags fade this step): [LFS16]'s vertex rule (``eigen_polyhedron.vertex_rule_weights``).
 * Non-quad faces (first step only): centroid face point, Catmull-Clark rows for their edges and
   vertices; the new edges inside the face get half the interval of the parallel parent edges,
   which is consistent (strips) only if ``d(h_{i-1}) = d(h_{i+1})`` around the face (all equal
   for odd faces, alternating for even ones): otherwise UnsupportedError.
-* Not implemented (UnsupportedError, never a wrong surface): non-uniform intervals at a tagged
-  vertex whose sector is not regular (theta != pi/2: seed 000's generalised eigen-polyhedra,
-  section 4.2-4.3, for crease/corner/dart EPs), and at a dart of valence != 4.
+* Non-uniform intervals at tagged vertices (seed 000 section 4): the generalised
+  eigen-polyhedron rules (``subdivision_rules.tagged_vertex_rules``) give the face points
+  around the vertex, the edge points of its untagged spokes and a dart's vertex point; crease
+  edges and crease/corner vertices follow the non-uniform crease curve.  Where a tagged
+  vertex's spoke intervals are all equal, section 2's BLZ rule is kept instead (on top of knot
+  insertion): section 4's edge form with equal intervals is not BLZ's rule when
+  theta != pi/2 (tests record the difference), and the acceptance asks for section 2 there.
+  A crease sector of a single face (theta = pi) makes the polyhedron degenerate: BLZ there too.
+* Not implemented (UnsupportedError, never a wrong surface): non-uniform intervals at an
+  interior vertex of valence 2; a rule whose bilinear solve has no root in the unit square
+  (extreme interval ratios).
 """
 
 from __future__ import annotations
@@ -88,6 +100,7 @@ from .subdivision_rules import (
     SMOOTH,
     blz_gamma,
     curve_derivative_weights,
+    tagged_vertex_rules,
     curve_edge_weights,
     curve_limit_weights,
     curve_vertex_weights,
@@ -380,16 +393,6 @@ def _blz_edge_correction(ctx: _Context, rows: _Rows, lev: _Level, e: np.ndarray,
     rows.add(row, b, -corr)
 
 
-def _blz_deltas(ctx: _Context, lev: _Level, e: np.ndarray) -> np.ndarray:
-    h = ctx.topo.edge_halfedge[e]
-    t = ctx.twin[h]
-    out = np.zeros(e.size)
-    for hh in (h, t):
-        tagged = lev.rule[ctx.origin[hh]] != SMOOTH
-        out = np.maximum(out, np.where(tagged, np.abs(0.375 - blz_gamma(ctx.theta_at(lev, hh))), 0.0))
-    return out
-
-
 def _sharp_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray, seed: bool) -> None:
     """Crease edge point: midpoint (uniform), or the curve edge rule along the crease curve."""
     if e.size == 0:
@@ -506,6 +509,67 @@ def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str):
     return claims
 
 
+def _tagged_rows(ctx: _Context, angles: str, claims: dict) -> None:
+    """Seed 000 section 4 at tagged vertices (non-uniform): the generalised eigen-polyhedron
+    rules of ``subdivision_rules.tagged_vertex_rules`` claim the face points around the vertex,
+    the edge points of its untagged spokes and (dart) its vertex point.  Not used, so that the
+    BLZ rules of section 2 apply there (on top of knot insertion): a vertex whose spoke
+    intervals are all equal (section 4 with equal intervals is not section 2 for theta != pi/2,
+    see the report in ``tagged_vertex_rules``' tests; a dart of valence != 4 still takes its
+    vertex row, which is Catmull-Clark's then), a crease sector of one face (theta = pi, a
+    degenerate polyhedron), and vertices next to a non-quad face."""
+    lev = ctx.parent
+    cand = np.flatnonzero((lev.rule != SMOOTH) & ~ctx.v_nonquad & ctx.topo.vertex_is_used)
+    for v in cand.tolist():
+        kind = int(lev.rule[v])
+        ring = ctx.topo.one_ring(v)
+        boundary = bool(ctx.v_boundary[v])
+        f = ring.size
+        spoke_he = list(ring)
+        spoke_edges = list(ctx.eoh[ring])
+        ends = list(ctx.dest[ring])
+        if boundary:
+            last = ctx.prv[ring[-1]]
+            spoke_edges.append(ctx.eoh[last])
+            ends.append(ctx.origin[last])
+        n = len(spoke_edges)
+        sharp = [i for i, e in enumerate(spoke_edges) if lev.sharp[e]]
+        if not boundary and sharp:  # rotate: a sharp spoke first
+            k = sharp[0]
+            ring = np.roll(ring, -k)
+            spoke_edges = spoke_edges[k:] + spoke_edges[:k]
+            ends = ends[k:] + ends[:k]
+            sharp = [(i - k) % n for i in sharp]
+        d = ctx.d_e[np.array(spoke_edges)]
+        equal = bool(np.all(np.abs(d - d[0]) <= 1e-12 * d.max()))
+        if kind == CREASE:
+            cuts = sorted(sharp)
+            sizes = np.diff(cuts + [cuts[0] + n]) if not boundary else [f]
+            if min(sizes) == 1:
+                continue
+        if equal and not (kind == DART and n != 4):
+            continue
+        key = tuple(float(f"{x:.12g}") for x in d / d.max())
+        try:
+            m, defined, _, _ = tagged_vertex_rules(kind, key, tuple(sorted(sharp)), boundary)
+        except ValueError as exc:
+            raise UnsupportedError(
+                f"seed 000's eigen-polyhedron rule undefined at tagged vertex {v} (valence {n}, "
+                f"spoke intervals {d.tolist()}): {exc}",
+                ctx.mesh.where("vertex", v),
+            ) from None
+        if equal:  # dart of valence != 4 with equal spokes: only its vertex row
+            defined = np.zeros_like(defined)
+            defined[0] = True
+        faces_pts = ctx.dest[ctx.nxt[ring]]
+        cols = np.concatenate([[v], np.array(ends, np.int64), faces_pts])
+        targets = np.concatenate(
+            [[ctx.nf + ctx.ne + v], ctx.nf + np.array(spoke_edges, np.int64), ctx.face[ring]]
+        )
+        for i in np.flatnonzero(defined).tolist():
+            claims.setdefault(int(targets[i]), []).append((cols, m[i]))
+
+
 # ------------------------------------------------------------------------------------------
 # The operator
 
@@ -545,6 +609,8 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
             ~ctx.v_boundary & (ctx.valence != 4) & (par.rule == SMOOTH) & ctx.topo.vertex_is_used
         )
         ep_claims = _ep_rows(ctx, eps, angles) if eps.size else {}
+        if seed:
+            _tagged_rows(ctx, angles, ep_claims)
     claimed = np.zeros(n_out, bool)
     if ep_claims:
         claimed[np.fromiter(ep_claims.keys(), np.int64)] = True
@@ -587,14 +653,9 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     vs_ = np.flatnonzero((sm_scale > 0) & free_v)
     if nonuniform:
         cc = ctx.v_nonquad[vs_]
-        odd = vs_[~cc & ((ctx.valence[vs_] != 4) | ctx.v_boundary[vs_])]
-        if odd.size:
-            v = int(odd[0])
-            raise UnsupportedError(
-                f"non-uniform intervals at vertex {v} (valence {int(ctx.valence[v])}) whose "
-                f"semi-sharp tags fade to the smooth rule: not implemented",
-                ctx.mesh.where("vertex", v),
-            )
+        odd = ~cc & ((ctx.valence[vs_] != 4) | ctx.v_boundary[vs_])
+        _lfs_vertex_rows(ctx, rows, vs_[odd], sm_scale[vs_[odd]])
+        vs_, cc = vs_[~odd], cc[~odd]
         _cc_vertex_rows(ctx, rows, vs_[cc], sm_scale[vs_[cc]])
         _tensor_vertex_rows(ctx, rows, vs_[~cc], sm_scale[vs_[~cc]])
     else:
@@ -613,12 +674,29 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     iso = np.flatnonzero(~used)
     rows.add(ctx.nf + ctx.ne + iso, iso, 1.0)
 
-    # EP rows (mean of the claims).
+    # EP and tagged-vertex rows (mean of the claims).
     for row, claims in ep_claims.items():
         k = len(claims)
         for cols, wts in claims:
             rows.add(np.full(cols.size, row), cols, wts / k)
     return rows.matrix((n_out, ctx.nv))
+
+
+def _lfs_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+    """[LFS16]'s vertex rule (``eigen_polyhedron.vertex_rule_weights``) for smooth vertices of
+    valence != 4 that no EP solve claimed: a semi-sharp vertex whose tags fade this step."""
+    from . import eigen_polyhedron as eig
+
+    for vv, sc in zip(v.tolist(), scale.tolist()):
+        ring = ctx.topo.one_ring(vv)
+        if ctx.v_boundary[vv] or ring.size < 3:
+            raise UnsupportedError(
+                f"non-uniform intervals at vertex {vv} (valence {int(ctx.valence[vv])}): no "
+                f"smooth rule for it",
+                ctx.mesh.where("vertex", vv),
+            )
+        cols = np.concatenate([[vv], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
+        rows.add(ctx.nf + ctx.ne + vv, cols, sc * eig.vertex_rule_weights(ctx.d_h[ring]))
 
 
 def _edge_touches_nonquad(ctx: _Context, e: np.ndarray) -> np.ndarray:
@@ -654,28 +732,6 @@ def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
             f"intervals, alternating for even sides)",
             ctx.mesh.where("face", f),
         )
-    for lev in (ctx.parent, ctx.child):
-        darts = np.flatnonzero((lev.rule == DART) & (ctx.valence != 4))
-        if darts.size:
-            v = int(darts[0])
-            raise UnsupportedError(
-                f"non-uniform intervals at dart vertex {v} of valence {int(ctx.valence[v])}: "
-                f"seed 000's dart eigen-polyhedron is not implemented",
-                ctx.mesh.where("vertex", v),
-            )
-        smooth_e = np.flatnonzero(~lev.sharp & ~_edge_touches_nonquad(ctx, np.arange(ctx.ne)))
-        if smooth_e.size:
-            delta = _blz_deltas(ctx, lev, smooth_e)
-            bad = np.flatnonzero(delta > 1e-12)
-            if bad.size:
-                e = int(smooth_e[bad[0]])
-                a, b = (int(x) for x in ctx.edges[e])
-                raise UnsupportedError(
-                    f"non-uniform intervals next to a tagged vertex whose sector is not regular "
-                    f"(edge {a}-{b}, BLZ theta != pi/2): seed 000's generalised eigen-polyhedra "
-                    f"for crease/corner sectors are not implemented",
-                    ctx.mesh.where("vertex", a),
-                )
 
 
 # ------------------------------------------------------------------------------------------
@@ -780,6 +836,8 @@ def subdivide(mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: st
 
 #: Most steps ``limit_operator`` takes to let semi-sharp features decay (1 + ceil(sharpness)).
 MAX_LIMIT_STEPS = 6
+#: Largest refined mesh (faces) ``limit_operator`` builds on the way.
+MAX_LIMIT_FACES = 4_000_000
 
 
 def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str):
@@ -788,10 +846,11 @@ def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str):
     finite sharpness.  Returns (level mesh, S_total, ids of the input vertices at that level)."""
     finite = [x for x in list(mesh.creases.values()) + list(mesh.corners.values()) if x < INFINITELY_SHARP]
     steps = 1 + int(math.ceil(max(finite, default=0.0)))
-    if steps > MAX_LIMIT_STEPS:
+    if steps > MAX_LIMIT_STEPS or mesh.n_faces * 4**steps > MAX_LIMIT_FACES:
         raise UnsupportedError(
-            f"limit of a semi-sharp feature of sharpness {max(finite):g} needs {steps} steps; "
-            f"this version takes at most {MAX_LIMIT_STEPS}",
+            f"limit of a semi-sharp feature of sharpness {max(finite):g} needs {steps} steps "
+            f"({mesh.n_faces * 4**steps} faces); this version takes at most {MAX_LIMIT_STEPS} "
+            f"steps and {MAX_LIMIT_FACES} faces",
             mesh.name,
         )
     total = sp.identity(mesh.n_vertices, format="csr")
@@ -842,7 +901,21 @@ def _local_masks(ctx: _Context, ids: np.ndarray, rules: str, angles: str, tangen
             rows.add(cr, end1, w[2])
         undefined[cr, 1] = True
 
-    smooth = rule <= DART
+    # Darts under seed rules: the edges and faces around them are BLZ- or seed-000-modified,
+    # so the local matrix is neither Catmull-Clark's nor a tensor product: take the dominant
+    # left eigenvector of S's own 1-ring block (closed at a stationary level).
+    seed_dart = (rule == DART) & (rules == "seed")
+    for i in np.flatnonzero(seed_dart).tolist():
+        v = int(ids[i])
+        ring = ctx.topo.one_ring(v)
+        cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
+        block = _ring_block(ctx, v, ring, rules, angles)
+        w, vl = np.linalg.eig(block.T)
+        j = int(np.argmin(np.abs(w - 1.0)))
+        lim = np.real(vl[:, j])
+        out[0].add(np.full(cols.size, i), cols, lim / lim.sum())
+        undefined[i] = True
+    smooth = (rule <= DART) & ~seed_dart
     reg = np.flatnonzero(smooth & (ctx.valence[ids] == 4) & ~ctx.v_boundary[ids])
     if reg.size:
         v = ids[reg]
@@ -872,17 +945,6 @@ def _local_masks(ctx: _Context, ids: np.ndarray, rules: str, angles: str, tangen
         n = ring.size
         cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
         d = ctx.d_h[ring]
-        dart = lev.rule[v] == DART
-        if dart and rules == "seed":
-            # BLZ modifies the edges next to a dart (theta = 2 pi / n): the local matrix is
-            # not Catmull-Clark's; its dominant left eigenvector from S's own 1-ring block.
-            block = _ring_block(ctx, v, ring, rules, angles)
-            w, vl = np.linalg.eig(block.T)
-            j = int(np.argmin(np.abs(w - 1.0)))
-            lim = np.real(vl[:, j])
-            out[0].add(np.full(cols.size, i), cols, lim / lim.sum())
-            undefined[i] = True
-            continue
         if ctx.uniform:  # Catmull-Clark's limit mask (OpenSubdiv's assignSmoothLimitMask)
             lim = np.concatenate([[n / (n + 5.0)], np.full(n, 4.0 / (n * (n + 5.0))), np.full(n, 1.0 / (n * (n + 5.0)))])
         else:
@@ -896,7 +958,11 @@ def _local_masks(ctx: _Context, ids: np.ndarray, rules: str, angles: str, tangen
 
 
 def _ring_block(ctx: _Context, v: int, ring: np.ndarray, rules: str, angles: str) -> np.ndarray:
-    s = _operator(ctx, rules, angles)
+    """S's rows and columns of v's 1-ring [V, E_0.., F_0..] (S built once per level)."""
+    ops = ctx.__dict__.setdefault("_operators", {})
+    if (rules, angles) not in ops:
+        ops[(rules, angles)] = _operator(ctx, rules, angles)
+    s = ops[(rules, angles)]
     cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
     rows = np.concatenate([[ctx.nf + ctx.ne + v], ctx.nf + ctx.eoh[ring], ctx.face[ring]])
     return s[rows][:, cols].toarray()

@@ -21,6 +21,10 @@ intervals, and its weights sum to one.
 
 from __future__ import annotations
 
+import functools
+import math
+from typing import NamedTuple
+
 import numpy as np
 
 __all__ = [
@@ -29,6 +33,7 @@ __all__ = [
     "blz_gamma",
     "curve_limit_weights",
     "curve_derivative_weights",
+    "tagged_vertex_rules",
     "SMOOTH",
     "DART",
     "CREASE",
@@ -107,3 +112,180 @@ def curve_derivative_weights(a, b):
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     scale = 3.0 / ((a + b) * (9 * a * b + 2 * (a - b) ** 2))
     return -b * (a + 2 * b) * scale, -2 * (a - b) * (a + b) * scale, a * (2 * a + b) * scale
+
+
+# ------------------------------------------------------------------------------------------
+# Seed 000 section 4: generalised eigen-polyhedra at tagged vertices (non-uniform intervals)
+
+KINDS = {DART: "dart", CREASE: "crease", CORNER: "corner"}
+
+
+def _hg_weights(d: np.ndarray, size: int):
+    """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..] and ``m_i + f_i``
+    (seed 000 eq. 7 with ``f_i = d_{i-1} d_{i+2}``, as ``eigen_polyhedron.vertex_rule_weights``
+    reads it)."""
+    n = d.size
+    dm2, dp2, dm1 = np.roll(d, 2), np.roll(d, -2), np.roll(d, 1)
+    g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)
+    gn = np.roll(g, -1)
+    f = dm1 * dp2
+    m = f + np.roll(f, 1)
+    rows = np.zeros((n, size))
+    for i in range(n):
+        j = (i + 1) % n
+        rows[i, 0] += m[i] * (1 - g[i]) + f[i] * (1 - g[i]) * (1 - gn[i])
+        rows[i, 1 + i] += m[i] * g[i] + f[i] * g[i] * (1 - gn[i])
+        rows[i, 1 + j] += f[i] * (1 - g[i]) * gn[i]
+        rows[i, 1 + n + i] += f[i] * g[i] * gn[i]
+    return rows, m + f
+
+
+class TaggedRules(NamedTuple):
+    """``matrix`` (size, size) local rows, ``defined`` (size,) bool, ``polyhedron`` (size, 2)
+    the generalised eigen-polyhedron P^0, ``translation`` (2,) T: defined rows satisfy
+    ``matrix @ polyhedron = polyhedron / 2 + T`` (for a corner: in each sector's own frame;
+    ``polyhedron`` is then the first sector's)."""
+
+    matrix: np.ndarray
+    defined: np.ndarray
+    polyhedron: np.ndarray
+    translation: np.ndarray
+
+
+@functools.lru_cache(maxsize=4096)
+def tagged_vertex_rules(kind: int, intervals: tuple, sharp: tuple, boundary: bool):
+    """Local rules around a tagged vertex from seed 000's generalised eigen-polyhedron.
+
+    kind: DART, CREASE or CORNER.  intervals: spoke intervals d_0..d_{n-1} (rotation order;
+    for an interior dart or crease, spoke 0 is a sharp spoke).  sharp: indices of the sharp
+    spokes.  boundary: spokes 0 and n-1 are the boundary edges and there are n-1 faces.
+    Local points [V, E_0..E_{n-1}, F_0..F_{nf-1}], face i = (V, E_i, F_i, E_{i+1}).
+    Returns TaggedRules (M, defined, P^0, T): M (size, size) float64, rows of the new points;
+    defined (size,) bool:
+    every face row, the rows of untagged spokes, and the vertex row of a dart.  The crease and
+    corner vertex rows and the crease edges are the curve rules (``subdivision``), not here.
+
+    Construction (seed 000 sections 4.1-4.3): ``V^ = 0``; ``E^_i = l_i (cos phi_i, sin phi_i)``
+    with l_i of eq. (5) (``eigen_polyhedron.spoke_lengths(d, "fourier")``; ``l = d`` for two
+    spokes) and angles per sector: dart ``2 pi / n``; crease ``pi / n_1`` and ``pi / n_2``;
+    corner ``alpha_q / n_q`` with the sector's topological angle (``pi/2`` a quad, see
+    ``subdivision``); ``F^_i = E^_i + E^_{i+1}``; ``lambda = 1/2``; ``T = V^1`` from the vertex
+    rule: dart eq. (9)-(10) (the two half-sums weighted with mu = y_2 / (y_2 - y_1) so that
+    ``T`` lies on the sharp spoke), crease eq. (14), corner 0.  Face rows: the bilinear form
+    (18) solved for ``F^1 = F^0/2 + T`` (eqs. 19-21; solved by
+    ``eigen_polyhedron._bilinear_inverse``, the same closed form).  Untagged edge rows: eqs.
+    (23)-(28), the bilinear form on ``(P_{i,k} + V or E_i)/2`` solved for ``E^1 = E^0/2 + T``.
+    Reconstruction: eq. (7)'s ``f_i`` is printed as a garbled product; ``d_{i-1} d_{i+2}`` as
+    in seed 002 (and ``eigen_polyhedron``).  Check (tests): equal intervals give the BLZ rules
+    (centroid faces, ``gamma = 3/8 - cos(theta)/4`` edges, Catmull-Clark darts).
+    """
+    from . import eigen_polyhedron as eig
+
+    d = np.array(intervals, dtype=np.float64)
+    n = d.size
+    nf = n - 1 if boundary else n
+    size = 1 + n + nf
+    ell = eig.spoke_lengths(d, "fourier") if n >= 3 else d.copy()
+    sharp = sorted(sharp)
+    # Spoke angles phi_i, per frame.  Dart and crease: one frame (their sectors add up to
+    # 2 pi, or pi on a boundary).  Corner: "we deal with each sector separately" (seed 000
+    # section 4.1): one frame per sector, so that sectors whose angles do not add up to 2 pi
+    # do not overlap; a face or an untagged spoke lies inside one sector and uses its frame.
+    def polyhedron(phi):
+        e = ell[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+        f = np.array([e[i] + e[(i + 1) % n] for i in range(nf)]).reshape(nf, 2)
+        return np.concatenate([np.zeros((1, 2)), e, f])
+
+    face_frame = np.zeros(nf, np.int64)
+    spoke_frame = np.zeros(n, np.int64)
+    if kind == DART:
+        frames = [polyhedron(2 * math.pi * np.arange(n) / n)]
+    else:
+        cuts = sharp if sharp else [0]
+        bounds = []
+        for q, s0 in enumerate(cuts):
+            s1 = cuts[q + 1] if q + 1 < len(cuts) else (cuts[0] + n if not boundary else n - 1)
+            if s1 > s0:
+                bounds.append((s0, s1))
+        if kind == CREASE:
+            theta = np.empty(nf)
+            for s0, s1 in bounds:
+                for j in range(s0, s1):
+                    theta[j % nf if not boundary else j] = math.pi / (s1 - s0)
+            frames = [polyhedron(np.concatenate([[0.0], np.cumsum(theta)])[:n])]
+        else:
+            frames = []
+            for q, (s0, s1) in enumerate(bounds):
+                phi = np.zeros(n)
+                for j in range(s0, s1 + 1):
+                    phi[j % n] = 0.5 * math.pi * (j - s0)  # alpha_q / n_q = pi/2 (quads)
+                frames.append(polyhedron(phi))
+                for j in range(s0, s1):
+                    face_frame[j % nf if not boundary else j] = q
+                for j in range(s0 + 1, s1):
+                    spoke_frame[j % n] = q
+    P = frames[0]
+    E = P[1 : 1 + n]
+    lam = 0.5
+    M = np.zeros((size, size))
+    defined = np.zeros(size, bool)
+    if kind == DART:
+        hg, w = _hg_weights(d, size)
+        half = (n - 1) // 2 + 1
+        xa, xb = hg[:half].sum(0), hg[half:].sum(0)
+        wa, wb = w[:half].sum(), w[half:].sum()
+        y1, y2 = (xa @ P)[1], (xb @ P)[1]
+        mu = y2 / (y2 - y1)
+        row = (3.0 / n) * (mu * xa + (1 - mu) * xb) / (mu * wa + (1 - mu) * wb)
+        row[0] += (n - 3.0) / n
+        M[0] = row
+        defined[0] = True
+        t_vec = row @ P
+    elif kind == CREASE:
+        a, b = d[0], d[sharp[1]] if len(sharp) > 1 else d[0]
+        k = sharp[1]
+        t_vec = (2 * a * (b + 2 * a) ** 2 * E[k] + 2 * b * (2 * b + a) ** 2 * E[0]) / (
+            8 * (b + a) * (2 * b + a) * (b + 2 * a)
+        )
+    else:
+        t_vec = np.zeros(2)
+
+    def unit(i):
+        u = np.zeros(size)
+        u[i] = 1.0
+        return u
+
+    alpha = np.zeros((nf, 2))
+    for i in range(nf):
+        j = (i + 1) % n
+        Q = frames[face_frame[i]]
+        fq = Q[1 + n + i]
+        a1, a2 = eig._bilinear_inverse(Q[0], Q[1 + i], Q[1 + j], fq, t_vec + lam * fq, f"{KINDS[kind]} face {i}")
+        alpha[i] = a1, a2
+        r = 1 + n + i
+        M[r, 0] = (1 - a1) * (1 - a2)
+        M[r, 1 + i] = a1 * (1 - a2)
+        M[r, 1 + j] = (1 - a1) * a2
+        M[r, r] = a1 * a2
+        defined[r] = True
+    for i in range(n):
+        if i in sharp or (boundary and i in (0, n - 1)):
+            continue
+        h = (i - 1) % nf if not boundary else i - 1
+        ah, ai = alpha[h, 0], alpha[i, 1]
+        fh, fi = 1 + n + h, 1 + n + i
+        p1 = (1 - ah) * unit(0) + ah * unit(1 + (i - 1) % n)
+        p2 = (1 - ai) * unit(0) + ai * unit(1 + (i + 1) % n)
+        p3 = (1 - ah) * unit(1 + i) + ah * unit(fh)
+        p4 = (1 - ai) * unit(1 + i) + ai * unit(fi)
+        q1, q2 = 0.5 * (p1 + unit(0)), 0.5 * (p2 + unit(0))
+        q3, q4 = 0.5 * (p3 + unit(1 + i)), 0.5 * (p4 + unit(1 + i))
+        Q = frames[spoke_frame[i]]
+        b1, b2 = eig._bilinear_inverse(
+            q1 @ Q, q2 @ Q, q3 @ Q, q4 @ Q, t_vec + lam * Q[1 + i], f"{KINDS[kind]} edge {i}"
+        )
+        M[1 + i] = (1 - b1) * (1 - b2) * q1 + b1 * (1 - b2) * q2 + (1 - b1) * b2 * q3 + b1 * b2 * q4
+        defined[1 + i] = True
+    for a in (M, defined, P, t_vec):
+        a.flags.writeable = False
+    return TaggedRules(M, defined, P, t_vec)

@@ -838,3 +838,103 @@ def test_relabelling_and_face_rotation_invariance(make, seed):
         a = subdivide(mesh, 2, rules).vertices
         b = subdivide(other, 2, rules).vertices
         assert np.abs(_sorted_points(a) - _sorted_points(b)).max() < 1e-12 * _size(mesh)
+
+
+# ---------------------------------------------------------------------------------------------
+# Seed 000 section 4: generalised eigen-polyhedra at tagged vertices (non-uniform)
+
+
+def _random_strip_intervals(mesh, ratio=3.0, seed=0):
+    """The same mesh with a random interval in [1, ratio] on every strip."""
+    from dataclasses import replace
+
+    from patching.topology import Topology
+
+    t = Topology(mesh)
+    rng = np.random.default_rng(seed)
+    first = np.full(t.n_strips, -1)
+    first[t.edge_strip[::-1]] = np.arange(t.n_edges)[::-1]
+    return replace(mesh, intervals={tuple(map(int, t.edges[e])): float(rng.uniform(1, ratio)) for e in first})
+
+
+@pytest.mark.parametrize(
+    "kind,n,sharp,boundary",
+    [
+        ("crease", 5, (0, 3), False), ("crease", 6, (0, 2), False), ("crease", 4, (0, 3), True),
+        ("crease", 5, (0, 4), True), ("dart", 5, (0,), False), ("dart", 4, (0,), False),
+        ("dart", 7, (0,), False), ("corner", 5, (0, 2, 3), False), ("corner", 3, (0, 2), True),
+        ("corner", 6, (0, 1, 4), False),
+    ],
+)
+def test_tagged_vertex_rules_satisfy_the_generalised_eigen_relation(kind, n, sharp, boundary):
+    from patching.subdivision_rules import CORNER, CREASE, DART, tagged_vertex_rules
+
+    k = {"crease": CREASE, "dart": DART, "corner": CORNER}[kind]
+    rng = np.random.default_rng(n)
+    for trial in range(3):
+        d = tuple(rng.uniform(1, 4, n)) if trial else (1.0,) * n
+        m, defined, p0, t = tagged_vertex_rules(k, d, sharp, boundary)
+        # rows sum to one; defined rows map P^0 to P^0 / 2 + T (seed 000 eqs. 17, 22)
+        assert np.abs(m[defined].sum(axis=1) - 1).max() < 1e-14
+        if kind != "corner":  # a corner's relation holds per sector frame (p0 is the first's)
+            assert np.abs(m[defined] @ p0 - (0.5 * p0[defined] + t)).max() < 1e-13
+        nf = n - 1 if boundary else n
+        faces = np.arange(1 + n, 1 + n + nf)
+        assert defined[faces].all()
+        if trial == 0:
+            # equal intervals: face points are centroids, a dart's vertex is Catmull-Clark's
+            for r in faces:
+                i = r - 1 - n
+                assert np.allclose(m[r][[0, 1 + i, 1 + (i + 1) % n, r]], 0.25, atol=1e-14)
+            if kind == "dart":
+                # Catmull-Clark on old points (seed 000 section 2: beta_1 = 3/2n, beta_2 = 1/4n)
+                cc = np.concatenate([[1 - 7 / (4 * n)], np.full(n, 3 / (2 * n**2)), np.full(n, 1 / (4 * n**2))])
+                assert np.abs(m[0] - cc).max() < 1e-14
+
+
+def test_tagged_rules_with_equal_intervals_are_not_blz_off_pi_over_2():
+    """Recorded finding: seed 000's section 4 edge form (27) with equal intervals gives, next to
+    a crease vertex of sector size 3 (theta = pi/3), weights (3/4 - g, g) on the ends with
+    g = 3/8 - 3 cos(theta)/16 = 9/32 and (1/8 - g/6, g/6) on the far points, not section 2's
+    (BLZ) g = 3/8 - cos(theta)/4 = 1/4 with 1/16 on the far points; both satisfy the
+    eigen relation.  So seed rules keep BLZ where the spoke intervals are equal."""
+    from patching.subdivision_rules import CREASE, tagged_vertex_rules
+
+    m, defined, _, _ = tagged_vertex_rules(CREASE, (1.0,) * 5, (0, 3), False)
+    row = m[2]  # spoke 1, inside the 3-face sector
+    g = 3 / 8 - 3 * math.cos(math.pi / 3) / 16
+    assert abs(row[0] - (3 / 4 - g)) < 1e-14 and abs(row[2] - g) < 1e-14
+    assert abs(row[1] - (1 / 8 - g / 6)) < 1e-14 and abs(row[6] - g / 6) < 1e-14
+
+
+@pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", SHAPES, ids=lambda p: p.stem)
+def test_nonuniform_seed_rules_on_shapes(path):
+    """Every manifold shape, refined once (quads) and given random strip intervals: S is affine,
+    crease curves are decoupled (a crease point depends on crease points only), and the limit
+    points are invariant under refinement."""
+    from patching.subdivision import limit_points
+    from patching.topology import Topology
+
+    mesh = _random_strip_intervals(subdivide(_read(path)), seed=1)
+    try:
+        S, child = subdivision_operator(mesh)
+    except UnsupportedError as err:
+        assert "valence 2" in str(err)  # catmark_val2_back2back: no eigen-polyhedron for n = 2
+        pytest.skip(str(err))
+    assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-13
+    t = Topology(mesh)
+    inf_sharp = np.flatnonzero(t.edge_is_boundary | (t.edge_sharpness >= 10))
+    crease_pts = np.unique(t.edges[inf_sharp])
+    rows = mesh.n_faces + inf_sharp
+    assert set(S[rows].indices.tolist()) <= set(crease_pts.tolist())
+    finite = [x for x in list(mesh.creases.values()) + list(mesh.corners.values()) if x < 10]
+    steps = 2 + math.ceil(max(finite, default=0))  # limit_points(child) refines this far
+    if mesh.n_faces * 4**steps > 3e5:
+        return  # keep the test fast: catmark_pawn's sharpness 5 would mean 10M faces
+    try:
+        L = limit_points(mesh)
+    except UnsupportedError as err:
+        pytest.skip(str(err))
+    ids = mesh.n_faces + t.n_edges + np.arange(mesh.n_vertices)
+    assert np.abs(limit_points(child)[ids] - L).max() <= 1e-12 * _size(mesh)
