@@ -219,6 +219,35 @@ def node_values(graph: SampleGraph, values: np.ndarray) -> tuple[np.ndarray, np.
     return mean, gap
 
 
+def _maxima_nodes(values: np.ndarray, pairs: np.ndarray, rel_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes, heights) of the discrete maxima (see ``local_maxima``), highest first; the node
+    of a plateau is its highest one."""
+    values = np.asarray(values, dtype=np.float64)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    none = np.zeros(0, np.int64), np.zeros(0)
+    if values.size == 0:
+        return none
+    tol = rel_tol * max(float(np.abs(values).max()), np.finfo(float).tiny)
+    higher = np.full(values.size, -np.inf)
+    np.maximum.at(higher, pairs[:, 0], values[pairs[:, 1]])
+    np.maximum.at(higher, pairs[:, 1], values[pairs[:, 0]])
+    top = (values > tol) & (higher <= values + tol)
+    idx = np.flatnonzero(top)
+    if idx.size == 0:
+        return none
+    both = top[pairs[:, 0]] & top[pairs[:, 1]]
+    local = np.full(values.size, -1, dtype=np.int64)
+    local[idx] = np.arange(idx.size)
+    link = pairs[both]
+    graph = sp.coo_matrix((np.ones(len(link)), (local[link[:, 0]], local[link[:, 1]])), shape=(idx.size,) * 2)
+    n_comp, label = connected_components(graph, directed=False)
+    order = idx[np.lexsort((-values[idx], label))]  # by component, highest first
+    first = np.unique(label[local[order]], return_index=True)[1]
+    nodes = order[first]
+    rank = np.argsort(-values[nodes], kind="stable")
+    return nodes[rank], values[nodes[rank]]
+
+
 def local_maxima(values: np.ndarray, pairs: np.ndarray, rel_tol: float = 1e-10) -> np.ndarray:
     """Heights of the local maxima of a function sampled at graph nodes, highest first.
 
@@ -228,27 +257,7 @@ def local_maxima(values: np.ndarray, pairs: np.ndarray, rel_tol: float = 1e-10) 
     is not a maximum).  Such nodes joined by a neighbour pair form one (plateau) maximum, so
     a maximum that falls between two samples of equal height by symmetry counts once.
     """
-    values = np.asarray(values, dtype=np.float64)
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    if values.size == 0:
-        return np.zeros(0)
-    tol = rel_tol * max(float(np.abs(values).max()), np.finfo(float).tiny)
-    higher = np.full(values.size, -np.inf)
-    np.maximum.at(higher, pairs[:, 0], values[pairs[:, 1]])
-    np.maximum.at(higher, pairs[:, 1], values[pairs[:, 0]])
-    top = (values > tol) & (higher <= values + tol)
-    idx = np.flatnonzero(top)
-    if idx.size == 0:
-        return np.zeros(0)
-    both = top[pairs[:, 0]] & top[pairs[:, 1]]
-    local = np.full(values.size, -1, dtype=np.int64)
-    local[idx] = np.arange(idx.size)
-    link = pairs[both]
-    graph = sp.coo_matrix((np.ones(len(link)), (local[link[:, 0]], local[link[:, 1]])), shape=(idx.size,) * 2)
-    n_comp, label = connected_components(graph, directed=False)
-    heights = np.full(n_comp, -np.inf)
-    np.maximum.at(heights, label, values[idx])
-    return np.sort(heights)[::-1]
+    return _maxima_nodes(values, pairs, rel_tol)[1]
 
 
 def count_local_maxima(values: np.ndarray, pairs: np.ndarray, rel_tol: float = 1e-10) -> int:
@@ -256,11 +265,106 @@ def count_local_maxima(values: np.ndarray, pairs: np.ndarray, rel_tol: float = 1
     return int(local_maxima(values, pairs, rel_tol).size)
 
 
+def _bernstein_derivatives(d: int, x: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Values, first and second derivatives of B^d_0..B^d_d at x, each (d+1,)."""
+    b0 = bernstein(d, np.array([x]))[0]
+    b1 = np.zeros(d + 1)
+    b2 = np.zeros(d + 1)
+    if d >= 1:
+        low = bernstein(d - 1, np.array([x]))[0]
+        b1[1:] += d * low
+        b1[:-1] -= d * low
+    if d >= 2:
+        low = bernstein(d - 2, np.array([x]))[0]
+        b2[2:] += d * (d - 1) * low
+        b2[1:-1] -= 2 * d * (d - 1) * low
+        b2[:-2] += d * (d - 1) * low
+    return b0, b1, b2
+
+
+def _newton_maximum(net: np.ndarray, start: np.ndarray, iterations: int = 40):
+    """Newton's method on the gradient of the polynomial sum net[i, j] B_i(s) B_j(t) from
+    ``start`` (its continuation beyond [0, 1]^2 included).  Returns (s, t) of a critical point
+    with a negative definite Hessian, or None."""
+    d = net.shape[0] - 1
+    x = np.asarray(start, dtype=np.float64).copy()
+    scale = max(float(np.abs(net).max()), np.finfo(float).tiny)
+    for _ in range(iterations):
+        bs, bt = _bernstein_derivatives(d, x[0]), _bernstein_derivatives(d, x[1])
+        g = np.array([bs[1] @ net @ bt[0], bs[0] @ net @ bt[1]])
+        h = np.array([[bs[2] @ net @ bt[0], bs[1] @ net @ bt[1]], [bs[1] @ net @ bt[1], bs[0] @ net @ bt[2]]])
+        if np.abs(g).max() <= 1e-11 * scale:
+            return x if np.linalg.eigvalsh(h).max() < 0 else None
+        try:
+            step = -np.linalg.solve(h, g)
+        except np.linalg.LinAlgError:
+            return None
+        if np.linalg.eigvalsh(h).max() >= 0 or g @ step <= 0:
+            step = 0.05 * g / np.linalg.norm(g)  # ascend until the Hessian is concave
+        x = x + np.clip(step, -0.1, 0.1)
+    return None
+
+
+def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int, values: np.ndarray) -> np.ndarray:
+    """Heights of the local maxima of one blending function (node values (N,)), highest first.
+
+    The discrete maxima of ``local_maxima`` are candidates.  The highest is a maximum (the
+    function has a global one).  Each other candidate must be confirmed by the polynomial of
+    a patch it lies on: Newton's method from its sample reaches a critical point with a
+    negative definite Hessian inside that patch and within two grid steps of the sample;
+    confirmed maxima at the same or neighbouring nodes are one.  This removes maxima that
+    sampling alone makes (a flat ridge crossing the grid obliquely), which otherwise come and
+    go with the grid size; it cannot find a bump narrower than the grid.
+    """
+    nodes, heights = _maxima_nodes(values, graph.pairs, 1e-10)
+    if nodes.size <= 1:
+        return heights
+    m = graph.node.shape[1]
+    step = 1.0 / (m - 1)
+    flat = graph.node.ravel()
+    degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in operator.groups])
+    starts = np.cumsum([0] + [len(g.faces) for g in operator.groups])
+    adjacency = sp.coo_matrix(
+        (np.ones(len(graph.pairs)), (graph.pairs[:, 0], graph.pairs[:, 1])), shape=(graph.n_nodes,) * 2
+    ).tocsr()
+    adjacency = adjacency + adjacency.T
+    kept_nodes = [int(nodes[0])]
+    kept = [float(heights[0])]
+    for node, height in zip(nodes[1:].tolist(), heights[1:].tolist()):
+        hit = None
+        for sample in np.flatnonzero(flat == node).tolist():
+            p, rest = divmod(sample, m * m)
+            a, b = divmod(rest, m)
+            row = int(graph.rows[p])
+            gi = int(np.searchsorted(starts, row, side="right") - 1)
+            d = int(degrees[row])
+            first = operator.groups[gi].row_offset + (d + 1) ** 2 * (row - starts[gi])
+            net = operator.matrix[first : first + (d + 1) ** 2, column].toarray().reshape(d + 1, d + 1)
+            x = _newton_maximum(net, np.array([a, b]) * step)
+            if x is None or np.abs(x - np.array([a, b]) * step).max() > 2 * step:
+                continue
+            if (x < -1e-9).any() or (x > 1 + 1e-9).any():
+                continue
+            ga, gb = np.clip(np.rint(x / step).astype(int), 0, m - 1)
+            hit = int(graph.node[p, ga, gb])
+            break
+        if hit is None:
+            continue
+        near = set(adjacency[hit].indices.tolist()) | {hit}
+        if any(k in near for k in kept_nodes):
+            continue
+        kept_nodes.append(hit)
+        kept.append(height)
+    return np.array(kept)
+
+
 def blending_maxima(
     operator: SurfaceOperator, control_points, samples: int = 17, rows: np.ndarray | None = None
 ) -> dict[int, np.ndarray]:
     """For every control point: heights of the local maxima of its blending function over its
-    whole support, highest first (a well-shaped function has exactly one).
+    whole support, highest first (a well-shaped function has exactly one).  Discrete maxima
+    on the joined grids (``sample_graph``, ``local_maxima``), each beyond the highest
+    confirmed by Newton's method on the patch polynomial (``_confirmed_maxima``).
 
     rows: patches to sample (default: every patch the control points touch); they must cover
     the supports, otherwise a maximum could hide on the rim.
@@ -270,7 +374,7 @@ def blending_maxima(
         rows = _touched_rows(operator, control_points)
     graph = sample_graph(operator, rows, samples)
     values, _ = node_values(graph, column_values(operator, control_points, rows, samples))
-    return {int(c): local_maxima(values[:, k], graph.pairs) for k, c in enumerate(control_points)}
+    return {int(c): _confirmed_maxima(operator, graph, int(c), values[:, k]) for k, c in enumerate(control_points)}
 
 
 def _touched_rows(operator: SurfaceOperator, control_points: np.ndarray) -> np.ndarray:
@@ -366,8 +470,10 @@ def ep_quality(
     Normal jumps: both patches at every spoke edge evaluated with numpy (``spoke_normal_jumps``,
     ``samples`` points along the spoke).  Local maxima: every blending function of the EP and
     its 2n neighbours sampled on ``samples`` x ``samples`` grids of every patch it touches,
-    the grids joined into one graph through the patch topology (``sample_graph``), maxima
-    counted by ``local_maxima``.  The count is over the function's whole support, not only the
+    the grids joined into one graph through the patch topology (``sample_graph``), discrete
+    maxima found by ``local_maxima`` and each but the highest confirmed by Newton's method on
+    its patch polynomial (``_confirmed_maxima``): a count is of true local maxima of the
+    function, not of the grid, down to bumps about one grid step wide.  The count is over the function's whole support, not only the
     EP's n patches: the edge neighbours sit on the rim of those patches, where half of their
     neighbourhood would be missing.  eps: the vertices to report (default: the mesh's EPs;
     pass the forced ones of ``build_operator(force_extraordinary=...)`` explicitly).
@@ -385,7 +491,7 @@ def ep_quality(
         maxima = {}
         second = {}
         for k, c in enumerate(points.tolist()):
-            heights = local_maxima(values[:, k], graph.pairs)
+            heights = _confirmed_maxima(operator, graph, c, values[:, k])
             maxima[c] = int(heights.size)
             second[c] = float(heights[1] / heights[0]) if heights.size > 1 else 0.0
         jumps = spoke_normal_jumps(surface, topo, v, samples)

@@ -222,3 +222,33 @@ def test_normal_jump_of_a_g1_surface_is_round_off_and_of_a_broken_one_is_reporte
     assert b.max_normal_jump_deg > 0.5
     jumps = spoke_normal_jumps(broken.evaluate(mesh.vertices), Topology(mesh), 0)
     assert jumps.size == 5 and (jumps > 0.5).sum() >= 1
+
+
+def test_maxima_that_only_sampling_makes_are_not_counted():
+    """A flat curved ridge, f = 1 - 8 (t - 1/2 - 0.6 (s - 1/2)^2)^2 - 0.01 (s - 1/2)^2 (exact in
+    a bi-quintic net), has one maximum; its samples on 13..33-point grids have 3 to 9 discrete
+    ones.  Newton confirmation on the patch polynomial leaves exactly the one."""
+    from patching.bernstein import bernstein
+    from patching.evaluation import _confirmed_maxima
+
+    mesh = ep_disc(5)
+    op = patching.build_operator(mesh)
+    quintic = [g for g in op.groups if g.degree == 5][0]
+    u = np.linspace(0, 1, 6)
+    b = bernstein(5, u)
+    s, t = np.meshgrid(u, u, indexing="ij")
+    f = 1 - 8 * (t - 0.5 - 0.6 * (s - 0.5) ** 2) ** 2 - 0.01 * (s - 0.5) ** 2
+    net = np.linalg.solve(b, np.linalg.solve(b, f).T).T  # interpolation: exact for this f
+    column = 7
+    m = op.matrix.tolil()
+    m[:, column] = 0
+    for r, v in zip(quintic.row_offset + np.arange(36), net.ravel()):
+        m[r, column] = v
+    ridge = dataclasses.replace(op, matrix=m.tocsr())
+    rows = np.arange(45)
+    for samples in (13, 17, 33):
+        graph = sample_graph(ridge, rows, samples)
+        values, _ = node_values(graph, column_values(ridge, [column], rows, samples))
+        assert count_local_maxima(values[:, 0], graph.pairs) >= 3
+        confirmed = _confirmed_maxima(ridge, graph, column, values[:, 0])
+        assert confirmed.size == 1 and confirmed[0] <= 1.0
