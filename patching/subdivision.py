@@ -100,10 +100,10 @@ from .subdivision_rules import (
     SMOOTH,
     blz_gamma,
     curve_derivative_weights,
-    tagged_vertex_rules,
     curve_edge_weights,
     curve_limit_weights,
     curve_vertex_weights,
+    tagged_vertex_rules,
 )
 from .topology import Topology
 
@@ -207,7 +207,6 @@ class _Context:
         # Vertex touches a non-quad face.
         self.v_nonquad = np.zeros(self.nv, bool)
         self.v_nonquad[self.origin[self.ksize != 4]] = True
-        self.all_quads = bool(np.all(self.fsize == 4))
 
     # -- levels -------------------------------------------------------------------------------
     def level(self, es: np.ndarray, vs: np.ndarray) -> _Level:
@@ -246,10 +245,6 @@ class _Context:
         local = np.arange(h.size) - start
         base = self.mesh.face_offsets[self.face[h]]
         return h, base + local
-
-    def other(self, h: np.ndarray) -> np.ndarray:
-        """The other end of half-edge h's edge, seen from origin(h)."""
-        return self.dest[h]
 
     @cached_property
     def regular_line_vertex(self) -> np.ndarray:
@@ -738,7 +733,7 @@ def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
 # The refined mesh and its tags
 
 
-def _child_mesh(ctx: _Context, points: np.ndarray, rules: str) -> ControlMesh:
+def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     nf, ne = ctx.nf, ctx.ne
     h = np.arange(ctx.H)
     quads = np.stack(
@@ -816,7 +811,7 @@ def subdivision_operator(
     _check_options(rules, angles)
     ctx = _Context(mesh)
     s = _operator(ctx, rules, angles)
-    child = _child_mesh(ctx, s @ mesh.vertices, rules)
+    child = _child_mesh(ctx, s @ mesh.vertices)
     return s, child
 
 
@@ -860,7 +855,7 @@ def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str):
         s = _operator(ctx, rules, angles)
         total = (s @ total).tocsr()
         ids = ctx.nf + ctx.ne + ids
-        mesh = _child_mesh(ctx, s @ mesh.vertices, rules)
+        mesh = _child_mesh(ctx, s @ mesh.vertices)
     return mesh, total, ids
 
 

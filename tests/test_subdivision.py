@@ -938,3 +938,24 @@ def test_nonuniform_seed_rules_on_shapes(path):
         pytest.skip(str(err))
     ids = mesh.n_faces + t.n_edges + np.arange(mesh.n_vertices)
     assert np.abs(limit_points(child)[ids] - L).max() <= 1e-12 * _size(mesh)
+
+
+@pytest.mark.parametrize("n", [3, 5, 7])
+def test_modified_angles_option_reaches_the_ep_rows(n):
+    """angles="modified" (seed 001) changes the EP rows for unequal spokes, and they are
+    eigen_polyhedron's modified local matrix; equal spokes give Catmull-Clark either way."""
+    from patching import eigen_polyhedron as eig
+
+    rng = np.random.default_rng(n)
+    mesh = polar_disk(n, spoke_intervals=rng.uniform(1, 10, n))
+    parent, kids, d = _ring_ids(mesh, 0)
+    s_std, _ = subdivision_operator(mesh, angles="standard")
+    s_mod, _ = subdivision_operator(mesh, angles="modified")
+    block = s_mod[kids][:, parent].toarray()
+    assert np.abs(block - eig.local_subdivision_matrix(d, angles="modified")).max() < 1e-15
+    assert np.abs(block - s_std[kids][:, parent].toarray()).max() > 1e-3
+    assert np.abs(np.asarray(s_mod.sum(axis=1)).ravel() - 1).max() < 1e-14
+    equal = polar_disk(n, spoke_intervals=[2.0] * n)
+    a, _ = subdivision_operator(equal, angles="standard")
+    b, _ = subdivision_operator(equal, angles="modified")
+    assert abs(a - b).max() < 1e-14
