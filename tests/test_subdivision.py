@@ -959,3 +959,40 @@ def test_modified_angles_option_reaches_the_ep_rows(n):
     a, _ = subdivision_operator(equal, angles="standard")
     b, _ = subdivision_operator(equal, angles="modified")
     assert abs(a - b).max() < 1e-14
+
+
+@pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", SHAPES, ids=lambda p: p.stem)
+def test_refined_shapes_read_back(path, tmp_path):
+    mesh = _read(path)
+    _, child = subdivision_operator(mesh)
+    write_obj(child, tmp_path / "out.obj")
+    back = read_obj(tmp_path / "out.obj")
+    assert np.array_equal(back.face_vertices, child.face_vertices)
+    assert np.array_equal(back.vertices, child.vertices)  # repr() round-trips floats exactly
+    assert back.creases == child.creases and back.corners == child.corners
+    assert back.holes == child.holes and back.interpolate_boundary == child.interpolate_boundary
+    S1, _ = subdivision_operator(child)
+    S2, _ = subdivision_operator(back)
+    assert (S1 != S2).nnz == 0
+
+
+@pytest.mark.parametrize("stem", ["catmark_cube", "catmark_torus", "catmark_pole8", "catmark_gregory_test6"])
+def test_limit_normals_point_like_the_faces(stem):
+    """t0 x t1 agrees in sign with the control mesh's face normals around each vertex."""
+    from patching.subdivision import limit_tangents
+
+    mesh = _read_shape(stem)
+    if mesh is None:
+        pytest.skip("opensubdiv-shapes folder absent")
+    T = limit_tangents(mesh)
+    normal = np.zeros((mesh.n_vertices, 3))
+    for f in range(mesh.n_faces):
+        fv = mesh.face(f)
+        p = mesh.vertices[fv]
+        nrm = sum(np.cross(p[i], p[(i + 1) % len(fv)]) for i in range(len(fv)))
+        normal[fv] += nrm
+    ok = ~np.isnan(T).any(axis=(1, 2))
+    assert ok.sum() > 0
+    n = np.cross(T[ok, 0], T[ok, 1])
+    assert np.all(np.einsum("ij,ij->i", n, normal[ok]) > 0)
