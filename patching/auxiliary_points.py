@@ -93,25 +93,32 @@ def anchor_weights(d, a, angles: str = "standard", rule: str = "eigen-polyhedron
 
 
 def anchor_matrix(
-    topo: Topology, rings, anchor_column: np.ndarray, n_points: int, angles: str = "standard", rule: str = "eigen-polyhedron"
+    topo: Topology, groups, anchor_column: np.ndarray, n_points: int, angles: str = "standard", rule: str = "eigen-polyhedron"
 ) -> sp.csr_matrix:
-    """(n_anchors, n_points) sparse: the anchors as combinations of control points."""
+    """(n_anchors, n_points) sparse: the anchors as combinations of control points.
+
+    groups: ``g1_patches.EPGroup`` per valence; weights are computed once per distinct
+    (intervals, onward intervals) configuration."""
     n_anchors = int(np.count_nonzero(anchor_column >= 0))
     rows, cols, vals = [], [], []
     iv = topo.halfedge_interval
     regular = ~topo.vertex_is_boundary & (topo.valence == 4)
-    for ring in rings.values():
-        h = ring.h
+    for g in groups:
+        h = g.h
         ends = topo.dest[h]
         far_corner = topo.dest[topo.next[h]]
-        # a_i: interval of the edge continuing spoke i straight beyond E_i.
-        onward = topo.next[topo.twin[topo.next[h]]]
-        a = np.where(regular[ends], iv[onward], ring.d)
-        weights = anchor_weights(ring.d, a, angles, rule)
-        ids = np.concatenate([[ring.vertex], ends, far_corner])
-        anchor_rows = anchor_column[h] - n_points
-        rows.append(np.repeat(anchor_rows, ids.size))
-        cols.append(np.tile(ids, ring.n))
+        # a_i: interval of the edge continuing spoke i straight beyond E_i (d_i where E_i is
+        # not a regular interior vertex).
+        onward = topo.next[np.maximum(topo.twin[topo.next[h]], 0)]
+        a = np.where(regular[ends], iv[onward], g.d)
+        config = np.concatenate([g.d, a], axis=1)
+        uniq, inverse = np.unique(config, axis=0, return_inverse=True)
+        table = np.array([anchor_weights(row[: g.n], row[g.n :], angles, rule) for row in uniq])
+        weights = table[inverse.ravel()]  # (E, n, 2n+1)
+        ids = np.concatenate([g.vertices[:, None], ends, far_corner], axis=1)  # (E, 2n+1)
+        anchor_rows = anchor_column[h] - n_points  # (E, n)
+        rows.append(np.broadcast_to(anchor_rows[:, :, None], weights.shape).ravel())
+        cols.append(np.broadcast_to(ids[:, None, :], weights.shape).ravel())
         vals.append(weights.ravel())
     if not rows:
         return sp.csr_matrix((0, n_points))

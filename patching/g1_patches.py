@@ -48,7 +48,7 @@ from .g1_constraints import a_slot, b_slot, r_slot, spoke_equations
 from .surface import CORNER_PARAMETERS
 from .topology import Topology
 
-__all__ = ["EPRing", "ep_rings", "local_index", "G1Assembly", "RowMixer", "blue_weights"]
+__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights"]
 
 QUINTIC = 5
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
@@ -64,50 +64,57 @@ def local_index(corner: int, j: int, m: int, degree: int = QUINTIC) -> tuple[int
     return int(p), int(q)
 
 
-@dataclass(frozen=True)
-class EPRing:
-    """One EP: vertex, spokes h[i] (outgoing half-edges, counter-clockwise), intervals d[i],
-    faces[i] = face(h[i]) (patch i), corner[i] = corner of the EP in that face, far_ep[i] the
-    EP at the far end of spoke i (-1 if regular) and far_spoke[i] its spoke index there."""
+#: LOCAL_OFFSET[corner, j, m] = 6 p + q: the row offset of local (j, m) inside a face's 36 rows.
+LOCAL_OFFSET = np.array(
+    [[[6 * local_index(c, j, m)[0] + local_index(c, j, m)[1] for m in range(6)] for j in range(6)] for c in range(4)],
+    dtype=np.int64,
+)
 
-    vertex: int
+
+@dataclass(frozen=True)
+class EPGroup:
+    """All EPs of one valence n, as (E, n) arrays in counter-clockwise spoke order.
+
+    h: spokes (outgoing half-edges); d: their intervals; faces: patch i = face(h_i); corner:
+    the EP's corner in that face; far: the vertex at the far end of each spoke if it is an EP
+    (else -1); far_spoke: that spoke's index in the far EP's ring."""
+
+    n: int
+    vertices: np.ndarray
     h: np.ndarray
     d: np.ndarray
     faces: np.ndarray
     corner: np.ndarray
-    far_ep: np.ndarray
+    far: np.ndarray
     far_spoke: np.ndarray
 
-    @property
-    def n(self) -> int:
-        return int(self.h.size)
 
-
-def ep_rings(topo: Topology, eps: np.ndarray) -> dict[int, EPRing]:
-    """The local ring of every EP (a Python loop over EPs: small local problems)."""
+def ep_groups(topo: Topology, eps: np.ndarray) -> list[EPGroup]:
+    """The rings of all EPs, grouped by valence, without a Python loop over EPs."""
+    eps = np.asarray(eps, dtype=np.int64)
+    valence = topo.valence[eps]
+    spoke_index = np.full(topo.origin.size, -1, dtype=np.int64)
+    is_ep = np.zeros(topo.n_vertices, dtype=bool)
+    is_ep[eps] = True
+    raw = []
+    for n in np.unique(valence).tolist():
+        vs = eps[valence == n]
+        h = np.empty((vs.size, n), dtype=np.int64)
+        h[:, 0] = topo.outgoing[vs]
+        for i in range(1, n):
+            h[:, i] = topo.rotate(h[:, i - 1])
+        spoke_index[h] = np.arange(n)[None, :]
+        raw.append((n, vs, h))
+    groups = []
     offsets = topo.mesh.face_offsets
-    iv = topo.halfedge_interval
-    rings = {}
-    spoke_of: dict[int, tuple[int, int]] = {}
-    raw = {}
-    for v in eps.tolist():
-        h = topo.one_ring(v)
-        raw[v] = h
-        for i, hh in enumerate(h.tolist()):
-            spoke_of[hh] = (v, i)
-    for v, h in raw.items():
+    for n, vs, h in raw:
         faces = topo.face[h]
-        far = [spoke_of.get(int(t), (-1, -1)) for t in topo.twin[h]]
-        rings[v] = EPRing(
-            vertex=v,
-            h=h,
-            d=iv[h],
-            faces=faces,
-            corner=h - offsets[faces],
-            far_ep=np.array([f[0] for f in far], dtype=np.int64),
-            far_spoke=np.array([f[1] for f in far], dtype=np.int64),
+        ends = topo.dest[h]
+        far = np.where(is_ep[ends], ends, -1)
+        groups.append(
+            EPGroup(n, vs, h, topo.halfedge_interval[h], faces, h - offsets[faces], far, np.where(far >= 0, spoke_index[topo.twin[h]], -1))
         )
-    return rings
+    return groups
 
 
 class RowMixer:
@@ -120,12 +127,16 @@ class RowMixer:
         self.weights: list[np.ndarray] = []
 
     def set(self, targets: np.ndarray, sources: np.ndarray, weights: np.ndarray) -> None:
-        """Every target row in ``targets`` (k,) becomes weights (k, m) @ rows ``sources`` (m,)."""
-        targets = np.atleast_1d(np.asarray(targets, dtype=np.int64))
+        """Batched: targets (E, T) rows become weights (T, S) (or (E, T, S)) @ rows sources (E, S)."""
+        targets = np.asarray(targets, dtype=np.int64)
         sources = np.asarray(sources, dtype=np.int64)
-        weights = np.asarray(weights, dtype=np.float64).reshape(targets.size, sources.size)
-        self.targets.append(np.repeat(targets, sources.size))
-        self.sources.append(np.tile(sources, targets.size))
+        if targets.ndim == 1:
+            targets, sources = targets[None], sources[None]
+        e, t = targets.shape
+        s = sources.shape[1]
+        weights = np.broadcast_to(np.asarray(weights, dtype=np.float64), (e, t, s))
+        self.targets.append(np.broadcast_to(targets[:, :, None], (e, t, s)).ravel())
+        self.sources.append(np.broadcast_to(sources[:, None, :], (e, t, s)).ravel())
         self.weights.append(weights.ravel())
 
     def matrix(self) -> sp.csr_matrix:
@@ -145,6 +156,14 @@ class RowMixer:
         return out
 
 
+def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique rows of a float array (NaN-safe) and the inverse index."""
+    key = np.where(np.isnan(a), np.inf, a)
+    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+    uniq = np.where(np.isinf(uniq), np.nan, uniq)
+    return uniq, inverse.ravel()
+
+
 def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
     u, s, vt = np.linalg.svd(a)
     rank = int(np.count_nonzero(s > rtol * max(1.0, s.max(initial=0.0))))
@@ -155,14 +174,14 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 def _red_operator(n: int, key: tuple) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
-    key = (alpha_a, alpha_b, b0, b1-or-None) per spoke, hashable."""
+    key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 NaN for a regular far end."""
     size = 1 + 3 * n
     s = lambda i: 1 + (i % n)  # noqa: E731
     f = lambda i: 1 + n + (i % n)  # noqa: E731
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
     rows = []
     for i, (aa, ab, b0, b1) in enumerate(key):
-        g = spoke_equations(aa, ab, b0, b1)
+        g = spoke_equations(aa, ab, b0, None if np.isnan(b1) else b1)
         # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
         # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
         slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
@@ -212,99 +231,108 @@ def blue_weights() -> np.ndarray:
 
 
 class G1Assembly:
-    """Row bookkeeping of the quintic irregular patches and the four G1 steps."""
+    """Row bookkeeping of the quintic irregular patches and the four G1 steps, vectorised over
+    the EPs of one valence; local solves are computed once per distinct configuration."""
 
-    def __init__(self, topo: Topology, rings: dict[int, EPRing], face_row: np.ndarray, angles: str) -> None:
+    def __init__(self, topo: Topology, groups: list[EPGroup], face_row: np.ndarray, angles: str) -> None:
         """face_row[f]: first row of face f's 36 quintic rows (-1 for faces that are not
         irregular).  angles: "optimized", "default" or "uniform" (angle_configuration mode)."""
         self.topo = topo
-        self.rings = rings
+        self.groups = groups
         self.face_row = face_row
-        self.angles = angles
-        self.config = {v: self._connecting(r) for v, r in rings.items()}
+        beta0 = np.full(topo.origin.size, np.nan)
+        self.beta0 = []
+        for g in groups:
+            uniq, inverse = _unique_rows(g.d)
+            b = np.array([-np.asarray(angle_configuration(row, mode=angles).b) for row in uniq])
+            b0 = b[inverse].reshape(g.d.shape)  # beta(0) per spoke (g1_constraints sign)
+            beta0[g.h] = b0
+            self.beta0.append(b0)
+        self.beta1 = [np.where(g.far >= 0, beta0[topo.twin[g.h]], np.nan) for g in groups]
 
-    def _connecting(self, ring: EPRing):
-        cfg = angle_configuration(ring.d, mode=self.angles)
-        return -np.asarray(cfg.b)  # beta(0) per spoke (g1_constraints sign)
+    def rows(self, g: EPGroup, patch: np.ndarray | int, j: int, m: int) -> np.ndarray:
+        """(E,) rows of local (j, m) of patch i (mod n) of every EP of the group."""
+        i = np.asarray(patch) % g.n
+        return self.face_row[g.faces[:, i]] + LOCAL_OFFSET[g.corner[:, i], j, m]
 
-    def row(self, face: int, p: int, q: int) -> int:
-        return int(self.face_row[face]) + 6 * p + q
-
-    def local_row(self, ring: EPRing, patch: int, j: int, m: int) -> int:
-        i = patch % ring.n
-        p, q = local_index(int(ring.corner[i]), j, m)
-        return self.row(int(ring.faces[i]), p, q)
-
-    def spoke_key(self, ring: EPRing, i: int):
-        n, d = ring.n, ring.d
-        b0 = float(self.config[ring.vertex][i])
-        far = int(ring.far_ep[i])
-        b1 = None if far < 0 else float(self.config[far][int(ring.far_spoke[i])])
-        return (float(d[i] * d[(i - 1) % n]), float(d[i] * d[(i + 1) % n]), b0, b1)
-
-    def spoke_slots(self, ring: EPRing, i: int) -> np.ndarray:
-        """(SLOTS,) rows: r_j = patch i [j,0]; A[j,1] = patch i [j,1]; B[1,j] = patch i-1 [1,j]."""
-        r = [self.local_row(ring, i, j, 0) for j in range(6)]
-        a = [self.local_row(ring, i, j, 1) for j in range(6)]
-        b = [self.local_row(ring, i - 1, 1, j) for j in range(6)]
-        return np.array(r + a + b, dtype=np.int64)
+    def spoke_keys(self, k: int) -> np.ndarray:
+        """(E, n, 4): (alpha_A, alpha_B, b0, b1) of every spoke of group k."""
+        g = self.groups[k]
+        return np.stack(
+            [g.d * np.roll(g.d, 1, axis=1), g.d * np.roll(g.d, -1, axis=1), self.beta0[k], self.beta1[k]], axis=-1
+        )
 
     # -- steps -------------------------------------------------------------------------------
     def red(self, mixer: RowMixer) -> None:
-        for ring in self.rings.values():
-            n = ring.n
-            key = tuple(self.spoke_key(ring, i) for i in range(n))
-            k = _red_operator(n, key)
-            src = np.array(
-                [self.local_row(ring, 0, 0, 0)]
-                + [self.local_row(ring, i, 1, 0) for i in range(n)]
-                + [self.local_row(ring, i, 1, 1) for i in range(n)]
-                + [self.local_row(ring, i, 2, 0) for i in range(n)],
-                dtype=np.int64,
+        for k, g in enumerate(self.groups):
+            n = g.n
+            keys = self.spoke_keys(k).reshape(len(g.vertices), 4 * n)
+            uniq, inverse = _unique_rows(keys)
+            ops = np.array([_red_operator(n, tuple(map(tuple, row.reshape(n, 4).tolist()))) for row in uniq])
+            i = np.arange(n)
+            src = np.concatenate(
+                [self.rows(g, 0, 0, 0)[:, None]]
+                + [np.stack([self.rows(g, ii, a, b) for ii in i], 1) for a, b in ((1, 0), (1, 1), (2, 0))],
+                axis=1,
             )
-            for i in range(n):
-                mixer.set(self.local_row(ring, i, 0, 0), src, k[0])
-                mixer.set([self.local_row(ring, i, 1, 0), self.local_row(ring, i - 1, 0, 1)], src, np.vstack([k[1 + i]] * 2))
-                mixer.set(self.local_row(ring, i, 1, 1), src, k[1 + n + i])
-                mixer.set([self.local_row(ring, i, 2, 0), self.local_row(ring, i - 1, 0, 2)], src, np.vstack([k[1 + 2 * n + i]] * 2))
+            # targets and the unknown each takes
+            tgt, unknown = [], []
+            for ii in range(n):
+                tgt += [self.rows(g, ii, 0, 0), self.rows(g, ii, 1, 0), self.rows(g, ii - 1, 0, 1),
+                        self.rows(g, ii, 1, 1), self.rows(g, ii, 2, 0), self.rows(g, ii - 1, 0, 2)]
+                unknown += [0, 1 + ii, 1 + ii, 1 + n + ii, 1 + 2 * n + ii, 1 + 2 * n + ii]
+            weights = ops[inverse][:, unknown, :]  # (E, T, S)
+            mixer.set(np.stack(tgt, 1), src, weights)
 
     def black(self, mixer: RowMixer) -> None:
-        weights = np.array([0.1, -0.5, 1.0, 0.5, -0.1])  # P00, P10, P20, P40, P50
-        for ring in self.rings.values():
-            for i in range(ring.n):
-                if ring.far_ep[i] >= 0:
+        weights = np.array([[0.1, -0.5, 1.0, 0.5, -0.1]] * 2)  # P00, P10, P20, P40, P50
+        for g in self.groups:
+            for i in range(g.n):
+                sel = g.far[:, i] < 0
+                if not sel.any():
                     continue
-                src = [self.local_row(ring, i, j, 0) for j in (0, 1, 2, 4, 5)]
-                targets = [self.local_row(ring, i, 3, 0), self.local_row(ring, i - 1, 0, 3)]
-                mixer.set(targets, src, np.vstack([weights, weights]))
+                src = np.stack([self.rows(g, i, j, 0)[sel] for j in (0, 1, 2, 4, 5)], 1)
+                tgt = np.stack([self.rows(g, i, 3, 0)[sel], self.rows(g, i - 1, 0, 3)[sel]], 1)
+                mixer.set(tgt, src, weights)
 
     def green(self, mixer: RowMixer) -> None:
-        for ring in self.rings.values():
-            for i in range(ring.n):
-                far = int(ring.far_ep[i])
-                if far >= 0 and far < ring.vertex:
-                    continue  # a spoke between two EPs is solved once, from its lower-id end
-                g = spoke_equations(*self.spoke_key(ring, i))
-                slots = self.spoke_slots(ring, i)
-                for k in (2, 3):
-                    na, nb = g[k, a_slot(k)], g[k, b_slot(k)]
-                    norm = na * na + nb * nb
-                    # x = x_hat - n (n . x_hat + rest) / |n|^2 for x = (A[k,1], B[1,k]).
-                    coeff = -g[k] / norm
-                    wa = np.outer([na], coeff).ravel()
-                    wb = np.outer([nb], coeff).ravel()
-                    wa[a_slot(k)] += 1.0
-                    wb[b_slot(k)] += 1.0
-                    mixer.set(slots[a_slot(k)], slots, wa)
-                    mixer.set(slots[b_slot(k)], slots, wb)
-                    if ring.far_ep[i] >= 0:
-                        # the same rows seen from the far EP are the same slots: nothing more
-                        pass
+        for k, g in enumerate(self.groups):
+            keys = self.spoke_keys(k)
+            for i in range(g.n):
+                # a spoke between two EPs is solved once, from its lower-id end
+                sel = (g.far[:, i] < 0) | (g.far[:, i] > g.vertices)
+                if not sel.any():
+                    continue
+                slots = np.stack(
+                    [self.rows(g, i, j, 0) for j in range(6)]
+                    + [self.rows(g, i, j, 1) for j in range(6)]
+                    + [self.rows(g, i - 1, 1, j) for j in range(6)],
+                    axis=1,
+                )[sel]
+                uniq, inverse = _unique_rows(keys[sel, i])
+                weights = np.array([_green_weights(*row) for row in uniq])[inverse]  # (E, 4, 18)
+                tgt = slots[:, [a_slot(2), b_slot(2), a_slot(3), b_slot(3)]]
+                mixer.set(tgt, slots, weights)
 
     def blue(self, mixer: RowMixer, faces: np.ndarray) -> None:
-        w = blue_weights()
-        for f in faces.tolist():
-            base = int(self.face_row[f])
-            src = base + np.arange(36)
-            targets = base + np.array([6 * 2 + 2, 6 * 3 + 2, 6 * 2 + 3, 6 * 3 + 3])
-            mixer.set(targets, src, w)
+        base = self.face_row[faces]
+        src = base[:, None] + np.arange(36)[None, :]
+        tgt = base[:, None] + np.array([6 * 2 + 2, 6 * 3 + 2, 6 * 2 + 3, 6 * 3 + 3])[None, :]
+        mixer.set(tgt, src, blue_weights())
+
+
+@lru_cache(maxsize=65536)
+def _green_weights(alpha_a: float, alpha_b: float, b0: float, b1: float) -> np.ndarray:
+    """(4, SLOTS): A[2,1], B[1,2], A[3,1], B[1,3] nearest to their extraction values under
+    G_2, G_3: x = x_hat - n (n . x_hat + rest) / |n|^2 for x = (A[k,1], B[1,k])."""
+    g = spoke_equations(alpha_a, alpha_b, b0, None if np.isnan(b1) else b1)
+    out = np.zeros((4, g.shape[1]))
+    for r, k in enumerate((2, 3)):
+        na, nb = g[k, a_slot(k)], g[k, b_slot(k)]
+        coeff = -g[k] / (na * na + nb * nb)
+        out[2 * r] = na * coeff
+        out[2 * r, a_slot(k)] += 1.0
+        out[2 * r + 1] = nb * coeff
+        out[2 * r + 1, b_slot(k)] += 1.0
+    out.setflags(write=False)
+    return out

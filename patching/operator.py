@@ -21,7 +21,7 @@ from .mesh import ControlMesh
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction
-from .g1_patches import G1Assembly, RowMixer, ep_rings
+from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
@@ -141,8 +141,8 @@ def build_operator(
         elevate = sp.kron(sp.identity(all_irregular.size), sp.csr_matrix(elevation_matrix_2d(3, 5)), format="csr")
         src = (16 * all_irregular[:, None] + np.arange(16)).ravel()
         rows = elevate @ extraction.nets[src]
-        rings = ep_rings(topo, eps)
-        g1 = G1Assembly(topo, rings, face_row, angles)
+        groups_ep = ep_groups(topo, eps)
+        g1 = G1Assembly(topo, groups_ep, face_row, angles)
         for step in (g1.red, g1.black, g1.green):
             mixer = RowMixer(rows.shape[0])
             step(mixer)
@@ -153,7 +153,7 @@ def build_operator(
         keep = (face_row[quintic_faces][:, None] + np.arange(36)).ravel()
         blocks.append(rows[keep])
         groups.append(OperatorGroup(5, quintic_faces, int(cubic_rows.size)))
-        anchors = anchor_matrix(topo, rings, extraction.anchor_column, n, rule=anchors)
+        anchors = anchor_matrix(topo, groups_ep, extraction.anchor_column, n, rule=anchors)
     else:
         anchors = sp.csr_matrix((n_anchor, n))
     stacked = sp.vstack(blocks).tocsr()
