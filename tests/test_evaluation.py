@@ -23,13 +23,16 @@ from patching.evaluation import (
 from patching.topology import Topology
 
 
-def ep_disc(n: int, intervals=None, rings: int = 3, name: str | None = None) -> patching.ControlMesh:
+def ep_disc(
+    n: int, intervals=None, rings: int = 3, name: str | None = None, layout: str = "knots"
+) -> patching.ControlMesh:
     """A planar disc of quads around one EP of valence n (vertex 0), for blending functions.
 
     Sector i (between spokes i and i+1, counter-clockwise) is a (rings + 1) x (rings + 1) grid;
     its vertex (a, b) sits at U_i[a] e_i + U_{i+1}[b] e_{i+1}, e_i the unit vector at angle
     2 pi i / n and U_i the partial sums of the intervals of spoke i, so the layout follows
-    the knots.  intervals: (n, rings) knot intervals; intervals[i, j] is the strip crossing
+    the knots (layout="knots"; layout="uniform" spaces the vertices 1 apart, as a picture of a
+    control grid would, whatever the intervals).  intervals: (n, rings) knot intervals; intervals[i, j] is the strip crossing
     spoke i at its j-th edge from the EP (j = 0 is the spoke edge d_i of the paper, j = 1 the
     a_i of its Fig. 11).  A last ring of zero-interval strips clamps the boundary (the
     operator builds no patch on open boundaries), so the rings x rings patches per sector hold
@@ -39,7 +42,8 @@ def ep_disc(n: int, intervals=None, rings: int = 3, name: str | None = None) -> 
     k = rings + 1
     d = np.ones((n, rings)) if intervals is None else np.asarray(intervals, dtype=np.float64)
     d = np.concatenate([d, np.zeros((n, 1))], axis=1)
-    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(d, axis=1)], axis=1)
+    spacing = d if layout == "knots" else np.ones_like(d)
+    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(spacing, axis=1)], axis=1)
     ang = 2 * np.pi * np.arange(n) / n
     e = np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
     ids: dict[tuple, int] = {}
