@@ -75,7 +75,9 @@ Choices where the seeds are silent, written once:
   vertex's spoke intervals are all equal, section 2's BLZ rule is kept instead (on top of knot
   insertion): section 4's edge form with equal intervals is not BLZ's rule when
   theta != pi/2 (tests record the difference), and the acceptance asks for section 2 there.
-  A crease sector of a single face (theta = pi) makes the polyhedron degenerate: BLZ there too.
+  A crease sector of a single face (theta = pi) makes the polyhedron degenerate, and a zero
+  spoke interval (a multiple knot, DESIGN 2) leaves it undefined: knot insertion with BLZ there
+  too.
 * Not implemented (UnsupportedError, never a wrong surface): non-uniform intervals at an
   interior vertex of valence 2; a rule whose bilinear solve has no root in the unit square
   (extreme interval ratios).
@@ -543,6 +545,8 @@ def _tagged_rows(ctx: _Context, angles: str, claims: dict) -> None:
             if min(sizes) == 1:
                 continue
         if equal and not (kind == DART and n != 4):
+            continue
+        if d.min() <= 0.0:  # a zero interval (multiple knot): no polyhedron; knot insertion
             continue
         key = tuple(float(f"{x:.12g}") for x in d / d.max())
         try:

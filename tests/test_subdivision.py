@@ -996,3 +996,64 @@ def test_limit_normals_point_like_the_faces(stem):
     assert ok.sum() > 0
     n = np.cross(T[ok, 0], T[ok, 1])
     assert np.all(np.einsum("ij,ij->i", n, normal[ok]) > 0)
+
+
+def test_clamped_open_grid_first_step_equals_occ_knot_insertion():
+    """Zero outer strips (DESIGN 2: the clamped NURBS): one step is OpenCASCADE's midpoint knot
+    insertion on the clamped surface, the edge points of the zero-length edges aside (they are
+    extra points the NURBS does not have).  Known limit: the refined mesh then has two zero
+    strips per clamped side, which later steps do not read as the same clamped NURBS."""
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array2OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    from patching.topology import Topology
+
+    du, dv = [0, 1, 2.5, 1, 4, 0], [0, 3, 1, 1, 0]
+    m, n = 7, 6
+    rng = np.random.default_rng(3)
+    mesh = open_grid(m, n, du, dv)
+    mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
+
+    def knots(d):
+        values, mults = np.unique(np.concatenate([[0.0], np.cumsum(d)]), return_counts=True)
+        mults[0] += 2
+        mults[-1] += 2
+        kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
+        for i, (v, mu) in enumerate(zip(values, mults)):
+            kk.SetValue(i + 1, float(v))
+            mm.SetValue(i + 1, int(mu))
+        return kk, mm, values
+
+    grid = mesh.vertices.reshape(m, n, 3)
+    poles = TColgp_Array2OfPnt(1, m, 1, n)
+    for k in range(m):
+        for l in range(n):
+            poles.SetValue(k + 1, l + 1, gp_Pnt(*map(float, grid[k, l])))
+    uk, um, uval = knots(du)
+    vk, vm, vval = knots(dv)
+    surf = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, False, False)
+    for u in (uval[:-1] + uval[1:]) / 2:
+        surf.InsertUKnot(float(u), 1, 1e-12)
+    for v in (vval[:-1] + vval[1:]) / 2:
+        surf.InsertVKnot(float(v), 1, 1e-12)
+    ref = np.array([[[surf.Pole(i, j).X(), surf.Pole(i, j).Y(), surf.Pole(i, j).Z()]
+                     for j in range(1, surf.NbVPoles() + 1)] for i in range(1, surf.NbUPoles() + 1)])
+    _, child = subdivision_operator(mesh)
+    t = Topology(mesh)
+    nf, ne = mesh.n_faces, t.n_edges
+    G = np.empty((2 * m - 1, 2 * n - 1), np.int64)
+    for a in range(m):
+        for b in range(n):
+            G[2 * a, 2 * b] = nf + ne + a * n + b
+            if a + 1 < m:
+                G[2 * a + 1, 2 * b] = nf + t.edge_id(a * n + b, (a + 1) * n + b)
+            if b + 1 < n:
+                G[2 * a, 2 * b + 1] = nf + t.edge_id(a * n + b, a * n + b + 1)
+            if a + 1 < m and b + 1 < n:
+                G[2 * a + 1, 2 * b + 1] = a * (n - 1) + b
+    keep_u = [i for i in range(2 * m - 1) if i not in (1, 2 * m - 3)]  # zero-length edges' points
+    keep_v = [j for j in range(2 * n - 1) if j not in (1, 2 * n - 3)]
+    assert ref.shape == (len(keep_u), len(keep_v), 3)
+    assert np.abs(child.vertices[G[np.ix_(keep_u, keep_v)]] - ref).max() < 1e-12 * _size(mesh)
