@@ -19,7 +19,8 @@ from patching.errors import InputFileError, NupatchError
 
 __all__ = ["main"]
 
-FORMATS = ("step",)
+ANGLES = ("optimized", "default", "uniform")
+ANCHORS = ("eigen-polyhedron", "extraction")
 
 
 def _progress(args: argparse.Namespace, message: str) -> None:
@@ -27,30 +28,25 @@ def _progress(args: argparse.Namespace, message: str) -> None:
         print(f"nupatch: {message}", file=sys.stderr)
 
 
-def _format_of(args: argparse.Namespace, out: Path) -> str:
-    fmt = args.format or out.suffix.lower().lstrip(".")
-    fmt = {"stp": "step"}.get(fmt, fmt)
-    if fmt not in FORMATS:
-        raise NupatchError(f"output format '{fmt}' is not supported (supported: {', '.join(FORMATS)})", str(out))
-    return fmt
-
-
 def cmd_build(args: argparse.Namespace) -> int:
-    from export import to_step
+    from export.formats import format_of, write
 
     mesh_path = Path(args.mesh)
-    out = Path(args.output) if args.output else mesh_path.with_suffix(".step")
+    fmt = args.format
+    out = Path(args.output) if args.output else mesh_path.with_suffix("." + (fmt or "step"))
     if out.resolve() == mesh_path.resolve():
         raise NupatchError("the output would overwrite the input mesh", str(out))
-    _format_of(args, out)
+    fmt = format_of(out, fmt)
+    if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
+        raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
     check_output_path(out)
     start = time.perf_counter()
     mesh = patching.read_mesh(mesh_path)
-    surface = patching.build(mesh)
+    surface = patching.build(mesh, angles=args.angles, anchors=args.anchors)
     _progress(args, f"{surface.n_patches} patches from {mesh.n_faces} faces in {time.perf_counter() - start:.2f} s")
     start = time.perf_counter()
-    to_step(surface, out)
-    _progress(args, f"wrote {out} in {time.perf_counter() - start:.2f} s")
+    write(surface, out, fmt, tolerance=args.tolerance)
+    _progress(args, f"wrote {out} ({fmt}) in {time.perf_counter() - start:.2f} s")
     return 0
 
 
@@ -115,19 +111,35 @@ def _require_step(path: Path) -> None:
         raise InputFileError("not a STEP file (no ISO-10303-21 header)", str(path))
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with DESIGN 4's one-line errors (argparse prints the usage, then the error)."""
+
+    def error(self, message: str):
+        print(f"nupatch: error: {' '.join(message.split())} (command line)", file=sys.stderr)
+        sys.exit(2)
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="nupatch",
         description="Quad control meshes with knot intervals to smooth Bezier/NURBS B-reps (STEP).",
     )
     parser.add_argument("--version", action="version", version=f"nupatch {patching.__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
-    p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell")
+    from export.formats import FORMATS
+
+    p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
     p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
-    p.add_argument("-o", "--output", metavar="OUT", help="output file (default: MESH with .step)")
+    p.add_argument("-o", "--output", metavar="OUT", help="output file (default: MESH with .step, or the --format's suffix)")
     p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
+    p.add_argument(
+        "--tolerance", type=float, metavar="T",
+        help="linear deflection of the stl/glb/obj tessellation, model units (default: 1e-3 of the control mesh's diagonal)",
+    )
+    p.add_argument("--angles", choices=ANGLES, default="optimized", help="angle configuration at extraordinary points (default: optimized)")
+    p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="rule for the auxiliary anchors at extraordinary points (default: eigen-polyhedron)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_build)
 

@@ -3,7 +3,7 @@
 ``write_step`` writes AP214 (``AUTOMOTIVE_DESIGN``) in millimetres with the product named
 ``product_name``.  The file appears only complete: OCC writes a temporary file in the target
 directory, its status must be ``IFSelect_RetDone``, then ``os.replace`` renames it into
-place.  Two writes of one shape differ only in the header's FILE_NAME statement (its time
+place (``export.atomic.atomic_output``).  Two writes of one shape differ only in the header's FILE_NAME statement (its time
 stamp, and the file's base name, which it carries).
 
 OCC writes reals with 13 significant digits (``StepData_StepWriter``'s fixed FloatWriter(12)),
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 from pathlib import Path
 
 from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
@@ -29,9 +28,11 @@ from OCP.StepBasic import StepBasic_Product
 from OCP.TCollection import TCollection_HAsciiString
 from OCP.TopoDS import TopoDS_Shape
 
-from patching.errors import InputFileError, OutputError
+from patching.errors import InputFileError
 
-__all__ = ["StepError", "write_step", "read_step"]
+from .atomic import atomic_output
+
+__all__ = ["StepError", "write_step", "write_step_file", "read_step"]
 
 #: STEP schema written; AP214 is read by every CAD system we know of.
 SCHEMA = "AP214IS"
@@ -69,18 +70,6 @@ def _static_values(values: dict[str, str]):
             Interface_Static.SetCVal_s(key, value)
 
 
-def _umask() -> int:
-    """The process umask, read without changing it where /proc allows."""
-    with contextlib.suppress(OSError, ValueError):
-        with open("/proc/self/status") as status:
-            for line in status:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def _name_products(writer: STEPControl_Writer, product_name: str, file_name: str) -> None:
     """Give every PRODUCT entity the id and name ``product_name``; the header FILE_NAME the file's."""
     model = writer.Model()
@@ -104,47 +93,34 @@ def write_step(shape: TopoDS_Shape, path: str | os.PathLike, product_name: str, 
     With ``check`` the shape must pass ``BRepCheck_Analyzer`` (else ``StepError``); pass
     False for a shape that ``to_shape`` has just checked (1.4 s saved on 10,000 faces).
     An output directory that is missing or not writable raises ``OutputError``; on any
-    failure a file already at ``path`` is left untouched and no temporary file remains.
+    failure a file already at ``path`` is left untouched and no temporary file remains
+    (``export.atomic.atomic_output``, the wrapper every format shares).
     """
     path = Path(path)
     if shape.IsNull() or (check and not BRepCheck_Analyzer(shape).IsValid()):
         raise StepError(f"refusing to write an invalid shape to {path}")
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise OutputError("the output path is a directory", str(path))
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise OutputError(f"cannot write in {directory}: {exc.strerror}", str(path)) from exc
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        # mkstemp makes the file private (0600); give it the mode a plain open() would.
-        os.chmod(tmp, 0o666 & ~_umask())
-        writer = STEPControl_Writer()  # also registers the write.step.* parameters
-        statics = {
-            "write.step.schema": SCHEMA,
-            "write.step.unit": "MM",
-            "write.step.product.name": product_name,
-        }
-        with _quiet_occ(), _static_values(statics):
-            status = writer.Transfer(shape, STEPControl_AsIs)
-            if status != IFSelect_RetDone:
-                raise StepError(f"STEPControl_Writer.Transfer returned {status} for {path}")
-            _name_products(writer, product_name, path.name)
-            status = writer.Write(str(tmp))
-        if status != IFSelect_RetDone:
-            raise StepError(f"STEPControl_Writer.Write returned {status} for {path}")
-        with open(tmp, "rb") as written:
-            if os.fstat(written.fileno()).st_size == 0:
-                raise StepError(f"STEPControl_Writer.Write left an empty file for {path}")
-            os.fsync(written.fileno())  # the data is on disk before the name points at it
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    with atomic_output(path, empty_error=StepError) as tmp:
+        write_step_file(shape, tmp, product_name, path.name)
     return path
+
+
+def write_step_file(shape: TopoDS_Shape, tmp: Path, product_name: str, file_name: str) -> None:
+    """Write ``shape`` as STEP to ``tmp`` (not atomic: callers wrap it in ``atomic_output``),
+    with ``file_name`` in the header, the name the file will have."""
+    writer = STEPControl_Writer()  # also registers the write.step.* parameters
+    statics = {
+        "write.step.schema": SCHEMA,
+        "write.step.unit": "MM",
+        "write.step.product.name": product_name,
+    }
+    with _quiet_occ(), _static_values(statics):
+        status = writer.Transfer(shape, STEPControl_AsIs)
+        if status != IFSelect_RetDone:
+            raise StepError(f"STEPControl_Writer.Transfer returned {status} for {file_name}")
+        _name_products(writer, product_name, file_name)
+        status = writer.Write(str(tmp))
+    if status != IFSelect_RetDone:
+        raise StepError(f"STEPControl_Writer.Write returned {status} for {file_name}")
 
 
 def read_step(path: str | os.PathLike) -> TopoDS_Shape:

@@ -167,3 +167,56 @@ def test_building_twice_gives_the_same_step_but_the_timestamp(tmp_path, run_cli)
     strip = lambda p: [l for l in p.read_text().splitlines() if not l.startswith("FILE_NAME")]  # noqa: E731
     assert strip(a) == strip(b)
     assert a.read_text() != "" and len(strip(a)) > 50
+
+
+# --- issue 5: formats, options -------------------------------------------------------------
+
+
+@pytest.mark.parametrize("args, expected", [
+    ((), "ring.step"),
+    (("--format", "glb"), "ring.glb"),
+    (("-o", "{tmp}/out.stl"), "out.stl"),
+    (("-o", "{tmp}/out.step", "--format", "obj"), "out.step"),
+])
+def test_format_follows_the_suffix_unless_given(tmp_path, run_cli, args, expected):
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(5, 4))
+    result = run_cli("build", mesh, *(a.format(tmp=tmp_path) for a in args), "-q")
+    assert result.returncode == 0, result.stderr
+    out = tmp_path / expected
+    head = out.read_bytes()[:64]
+    fmt = args[args.index("--format") + 1] if "--format" in args else Path(expected).suffix[1:]
+    signature = {"step": b"ISO-10303-21", "glb": b"glTF", "stl": b"nupatch ring", "obj": b"# nupatch ring"}[fmt]
+    assert head.startswith(signature), head
+
+
+@pytest.mark.parametrize("args, fragment, where", [
+    (("-o", "{tmp}/out.ply"), "suffix '.ply'", "out.ply"),
+    (("--format", "ply"), "invalid choice: 'ply'", "command line"),
+    (("-o", "{tmp}/out.stl", "--tolerance", "0"), "tolerance must be finite and > 0", "--tolerance"),
+    (("-o", "{tmp}/out.stl", "--tolerance", "nan"), "tolerance must be finite and > 0", "--tolerance"),
+    (("--angles", "random"), "invalid choice: 'random'", "command line"),
+])
+def test_bad_output_options_are_refused_in_one_line(tmp_path, run_cli, args, fragment, where):
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(5, 4))
+    result = run_cli("build", mesh, *(a.format(tmp=tmp_path) for a in args))
+    _assert_refused(result, fragment, where)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ring.obj"]
+
+
+def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
+    from patching import write_obj
+    from tests.test_cad import ell_mesh
+
+    mesh = tmp_path / "ell.obj"
+    write_obj(ell_mesh(), mesh)
+    outputs = {}
+    for options in ((), ("--angles", "optimized", "--anchors", "eigen-polyhedron"), ("--angles", "uniform"), ("--anchors", "extraction")):
+        out = tmp_path / f"ell{len(outputs)}.brep"  # BREP: no time stamp, so equal builds give equal files
+        result = run_cli("build", mesh, "-o", out, "-q", *options)
+        assert result.returncode == 0, result.stderr
+        outputs[options] = out.read_bytes()
+    defaults, explicit, uniform, extraction = outputs.values()
+    assert defaults == explicit
+    assert len({defaults, uniform, extraction}) == 3
