@@ -314,8 +314,8 @@ class G1Assembly:
                 tgt = slots[:, [a_slot(2), b_slot(2), a_slot(3), b_slot(3)]]
                 mixer.set(tgt, slots, weights)
 
-    def blue(self, mixer: RowMixer, faces: np.ndarray) -> None:
-        base = self.face_row[faces]
+    def blue(self, mixer: RowMixer) -> None:
+        base = self.face_row[self.face_row >= 0]
         src = base[:, None] + np.arange(36)[None, :]
         tgt = base[:, None] + np.array([6 * 2 + 2, 6 * 3 + 2, 6 * 2 + 3, 6 * 3 + 3])[None, :]
         mixer.set(tgt, src, blue_weights())
