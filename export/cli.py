@@ -91,12 +91,23 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     _require_step(path)
-    report = check_continuity(path)
+    if not args.sharp_angle > 0 or not args.g1_tolerance >= 0 or args.worst < 0 or args.samples < 2:
+        raise NupatchError("--sharp-angle must be > 0, --g1-tolerance >= 0, --worst >= 0 and --samples >= 2", "command line")
+    report = check_continuity(
+        path,
+        samples_per_edge=args.samples,
+        worst=args.worst,
+        sharp_angle_deg=args.sharp_angle,
+        g1_tolerance_deg=args.g1_tolerance,
+        all_edges=args.all,
+    )
     if args.json:
         print(report.to_json())
     else:
-        print(report.summary())
-    return 0 if report.valid else 1
+        print(report.summary(report.edges if args.all else None))
+    if not report.valid:
+        return 1
+    return 1 if args.require_g1 and not report.g1 else 0
 
 
 def _require_step(path: Path) -> None:
@@ -148,9 +159,23 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_info)
 
-    p = sub.add_parser("check", help="validity and continuity of a STEP file")
+    from export.continuity import G1_TOLERANCE_DEG, N_WORST, SHARP_ANGLE_DEG
+
+    p = sub.add_parser("check", help="validity and continuity of a STEP file: per-edge G0/G1 table, sharp edges")
     p.add_argument("file", metavar="FILE.step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--worst", type=int, default=N_WORST, metavar="N", help=f"list the N worst edges by normal jump and by gap (default {N_WORST})")
+    p.add_argument("--all", action="store_true", help="list every shared edge")
+    p.add_argument("--samples", type=int, default=9, metavar="K", help="samples per shared edge, ends included (default 9)")
+    p.add_argument(
+        "--sharp-angle", type=float, default=SHARP_ANGLE_DEG, metavar="DEG",
+        help=f"an edge whose normal jump is at least DEG all along is sharp, a crease (default {SHARP_ANGLE_DEG:g})",
+    )
+    p.add_argument(
+        "--g1-tolerance", type=float, default=G1_TOLERANCE_DEG, metavar="DEG",
+        help=f"largest normal jump of a G1 edge (default {G1_TOLERANCE_DEG:g})",
+    )
+    p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
     p.set_defaults(func=cmd_check)
     return parser
 
