@@ -6,9 +6,9 @@ bi-quintic, then their rows are recombined, EP by EP, spoke by spoke and face by
 small local solves that depend on intervals and connecting functions only.  Each step is a
 sparse matrix T with new_rows = T @ old_rows (identity outside the rows it sets):
 
-1. red (per EP): P00, the spoke points P^i[1,0], the face points P^i[1,1] and P^i[2,0];
-   least squares towards the extraction under G_0 and G_1 of every spoke, with P00 kept at
-   the extraction's vertex point (eq. 3, so the anchors fix it).
+1. red (per EP): P00, the spoke points P^i[1,0], the face points P^i[1,1] and P^i[2,0]:
+   least squares towards the extraction under G_0 (then G_1) of every spoke, with P00 kept
+   at the extraction's vertex point (eq. 3, so the anchors fix it).
 2. black (per spoke with a regular far end): P^i[3,0] from the fifth difference (eq. 8, last
    row: P30 = P20 + P40/2 - P10/2 + P00/10 - P50/10).
 3. green (per spoke): A[k,1], B[1,k] for k = 2, 3, nearest to the extraction under G_2, G_3.
@@ -21,11 +21,12 @@ Reconstruction of the red problem (seed 002 text lost between "with linear const
 spoke points and face points (D_{3i} = s_i - P00, D_{3i+1} = f_i - s_i, D_{3i+2} = s_{i+1} - f_i)
 subject to G_0 of every spoke.  Deviation, said in the issue note: the paper then takes
 P^i[2,0] from G_1 alone, dividing by 4 b_i; b_i vanishes at valence 4 and for symmetric
-configurations, so here P^i[2,0] joins the least squares (one more difference, q_i - s_i) and
-G_1 joins the constraints.  Where b_i is far from zero the result is the paper's up to the
-weight of that one difference; where b_i = 0 it stays defined.  The differences do not see a
-translation, so P00 is held at its extraction value; the solve uses the null space of the
-constraints (G_0 has rank n - 2: the tangent plane), which tolerates the dependent rows.
+configurations, so here a second stage moves P^i[2,0] *and* P^i[1,1] as little as possible
+(least squares, equal weights) to satisfy G_1, keeping P00 and the spoke points, hence the
+tangent plane of section 3.5.  Where b_i = 0 it stays defined.  The differences do not see a
+translation, so P00 is held at its extraction value; the solves use the null space of the
+constraints and pseudo-inverses (G_0 has rank n - 2: the tangent plane), which tolerate the
+dependent rows.
 
 Blue coefficients (printed formulas garbled; reconstructed): a quintic that is a
 degree-elevated cubic has q_2 = f_1(q_0, q_1, q_4, q_5) and q_3 = f_2(q_0, q_1, q_4, q_5) with
@@ -174,12 +175,17 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 def _red_operator(n: int, key: tuple) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
-    key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 NaN for a regular far end."""
+    key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 NaN for a regular far end.
+    Stage 1 (seed 002 section 3.4): P00 held, spoke points s and face points f nearest to the
+    extraction's differences D under G_0; every input is then in the anchors' plane, so the
+    tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to stage 1 and the
+    extraction under G_1, with P00 and s kept (the paper takes q from G_1 alone, dividing by
+    4 b_i, which vanishes at valence 4 and in symmetric configurations)."""
     size = 1 + 3 * n
     s = lambda i: 1 + (i % n)  # noqa: E731
     f = lambda i: 1 + n + (i % n)  # noqa: E731
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
-    rows = []
+    rows = {0: [], 1: []}
     for i, (aa, ab, b0, b1) in enumerate(key):
         g = spoke_equations(aa, ab, b0, None if np.isnan(b1) else b1)
         # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
@@ -191,24 +197,35 @@ def _red_operator(n: int, key: tuple) -> np.ndarray:
             for slot, col in slot_to_x.items():
                 row[col] += g[k, slot]
             assert np.allclose(np.delete(g[k], list(slot_to_x)), 0.0), "G_0, G_1 reach beyond the red slots"
-            rows.append(row)
-    pin = np.zeros(size)
+            rows[k].append(row)
+    # Stage 1 on x1 = [P00, s, f].
+    n1 = 1 + 2 * n
+    pin = np.zeros(n1)
     pin[0] = 1.0
-    constraints = np.vstack(rows + [pin])
-    # Differences D (and q_i - s_i).
+    c1 = np.vstack([r[:n1] for r in rows[0]] + [pin])
     diffs = []
     for i in range(n):
-        for a, b in ((s(i), 0), (f(i), s(i)), (s(i + 1), f(i)), (q(i), s(i))):
-            row = np.zeros(size)
+        for a, b in ((s(i), 0), (f(i), s(i)), (s(i + 1), f(i))):
+            row = np.zeros(n1)
             row[a] += 1.0
             row[b] -= 1.0
             diffs.append(row)
     e = np.vstack(diffs)
-    z = _null_space(constraints)
-    # x = 1 x0_hat + Z (E Z)^+ E x_hat  (E annihilates constants).
-    ez = e @ z
-    k = z @ np.linalg.pinv(ez, rcond=1e-12) @ e
-    k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to x0
+    z = _null_space(c1)
+    # x1 = 1 x0_hat + Z (E Z)^+ E x1_hat  (E annihilates constants).
+    k1 = z @ np.linalg.pinv(e @ z, rcond=1e-12) @ e
+    k1[:, 0] += 1.0 - k1.sum(axis=1)
+    stage1 = np.zeros((size, size))
+    stage1[:n1, :n1] = k1
+    stage1[n1:, n1:] = np.eye(n)  # q keeps its extraction value for now
+    # Stage 2: y = [f, q] nearest to stage 1 under G_1, P00 and s fixed.
+    c = np.vstack(rows[1])  # (n, size)
+    y = np.arange(1 + n, size)
+    cy = c[:, y]
+    correction = np.zeros((size, size))
+    correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
+    k = (np.eye(size) + correction) @ stage1
+    k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
     return k
 

@@ -18,6 +18,7 @@ import scipy.sparse as sp
 
 from .errors import UnsupportedError
 from .mesh import ControlMesh
+from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction
@@ -26,7 +27,10 @@ from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
-__all__ = ["SurfaceOperator", "build_operator", "build"]
+__all__ = ["SurfaceOperator", "build_operator", "build", "ANCHOR_RULES"]
+
+#: Placements of the auxiliary control points (``build_operator(anchors=...)``).
+ANCHOR_RULES = ("eigen-polyhedron", "extraction", "faired")
 
 
 @dataclass(frozen=True)
@@ -114,6 +118,8 @@ def build_operator(
     angles: the angle configuration at EPs, "optimized" (seed 002 section 3.3, default),
     "default" (the heuristic angles) or "uniform" (2 pi / n, the baseline of [32]).
     """
+    if anchors not in ANCHOR_RULES:
+        raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     topo = topology or Topology(mesh)
     _refuse_unsupported(topo)
     spans = face_spans(topo)
@@ -153,10 +159,17 @@ def build_operator(
         keep = (face_row[quintic_faces][:, None] + np.arange(36)).ravel()
         blocks.append(rows[keep])
         groups.append(OperatorGroup(5, quintic_faces, int(cubic_rows.size)))
-        anchors = anchor_matrix(topo, groups_ep, extraction.anchor_column, n, rule=anchors)
+        rule = "eigen-polyhedron" if anchors == "faired" else anchors
+        anchor_rows = anchor_matrix(topo, groups_ep, extraction.anchor_column, n, rule=rule)
     else:
-        anchors = sp.csr_matrix((n_anchor, n))
+        anchor_rows = sp.csr_matrix((n_anchor, n))
     stacked = sp.vstack(blocks).tocsr()
+    if anchors == "faired" and n_anchor:
+        degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
+        patch_faces = np.concatenate([g.faces for g in groups])
+        sets = [extraction.anchor_column[g.h[e]] - n for g in groups_ep for e in range(len(g.vertices))]
+        anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
+    anchors = anchor_rows
     matrix = (stacked[:, :n] + stacked[:, n:] @ anchors).tocsr()
     matrix.eliminate_zeros()
     ordered = np.concatenate([g.faces for g in groups])
