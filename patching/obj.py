@@ -23,7 +23,7 @@ __all__ = ["read_obj", "parse_obj", "write_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
 _IGNORED = {"vt", "vn", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
-_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary"}
+_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "nupatch_rules"}
 
 
 def read_obj(path: str | os.PathLike) -> ControlMesh:
@@ -181,6 +181,8 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
         for f in ints:
             holes.append(f)
             locations[("hole", f)] = loc
+    elif tag == "nupatch_rules":
+        pass  # the subdivision rules a refined mesh was made with (nupatch subdivide): a record
     elif tag == "interpolateboundary":
         if nint != 1 or ints[0] not in (0, 1, 2):
             raise TagError("interpolateboundary takes one integer 0, 1 or 2", loc)
