@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import patching  # noqa: E402
-from patching.evaluation import ep_quality, neighbourhood  # noqa: E402
+from patching.evaluation import blending_maxima, ep_quality, neighbourhood  # noqa: E402
 from patching.topology import Topology  # noqa: E402
 from tests.test_evaluation import ep_disc, lifted  # noqa: E402
 
@@ -155,9 +155,28 @@ def _ep_patches(op, mesh, column: int, samples: int, height: float):
     return out
 
 
+#: Two ratio-20 configurations whose EP function has two maxima (found by the benchmark's
+#: sweep and by hand; see the note in the report): a symmetric valence-5 one, two humps in every
+#: mode, and a valence-6 one, two humps with uniform angles and one with optimized angles.
+DEFECTS = {
+    "defect_v5_1-20-1-20-1": (1.0, 20.0, 1.0, 20.0, 1.0),
+    "defect_v6_20-1-20-1-1-1": (20.0, 1.0, 20.0, 1.0, 1.0, 1.0),
+}
+
+
 def figure_12(samples: int = 41) -> None:
-    """Contour, zebra and shaded pictures of the EP's blending function of the Fig. 12
-    configuration, optimized angles beside uniform angles ([32]), under benchmarks/figures/.
+    """Fig. 12 pictures (contour, zebra, shaded) and contour pictures of the DEFECTS."""
+    figure(FIG12_SPOKES, "fig12", "seed 002 Fig. 12 (our reading): valence 5, spoke strips "
+           f"{tuple(int(x) for x in FIG12_SPOKES)}, red 8, blue 4", samples=samples)
+    for stem, spokes in DEFECTS.items():
+        figure(spokes, stem, f"valence {len(spokes)}, spoke strips {tuple(int(x) for x in spokes)}, other strips 1",
+               samples=samples, kinds=("contour",))
+
+
+def figure(spokes, stem: str, title: str, samples: int = 41, kinds=("contour", "zebra", "surface")) -> None:
+    """Contour, zebra and shaded pictures of the EP's blending function of a configuration (spoke
+    strips ``spokes``, all others 1), optimized angles beside uniform angles ([32]), saved as
+    benchmarks/figures/<stem>_<kind>.png.
 
     The control grid follows the knots (``ep_disc(layout="knots")``: a parameter unit is a unit
     of length); with unit spacing instead the planar map squeezes the 1 x 1 sector into a sliver
@@ -169,31 +188,31 @@ def figure_12(samples: int = 41) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.colors import LightSource
 
-    n = 5
+    n = len(spokes)
     d = np.ones((n, 3))
-    d[:, 0] = FIG12_SPOKES
-    mesh = ep_disc(n, d, name="fig12")
+    d[:, 0] = spokes
+    mesh = ep_disc(n, d, name=stem)
     topo = Topology(mesh)
     FIGURES.mkdir(parents=True, exist_ok=True)
     modes = ("optimized", "uniform")
     width = float(np.ptp(mesh.vertices[:, 0]))
-    data = {}
+    data, op_of = {}, {}
     for mode in modes:
         op = patching.build_operator(mesh, topology=topo, angles=mode)
         (q,) = ep_quality(op, lifted(mesh), topology=topo)
         peak = float(op.matrix[:, 0].max())
         data[mode] = (_ep_patches(op, mesh, 0, samples, 0.15 * width / peak), q)
-        print(f"Fig. 12 {mode:>9}: maxima of the EP's function {q.local_maxima[0]}, "
+        op_of[mode] = op
+        print(f"{stem} {mode:>9}: maxima of the EP's function {q.local_maxima[0]}, "
               f"of its 2n neighbours {sorted(set(q.local_maxima.values()))}, "
               f"largest second maximum {max(q.second_maximum.values()):.2e}, normal jump {q.max_normal_jump_deg:.1e} deg")
     diff = max(
         float(np.abs(a[2] - b[2]).max()) for a, b in zip(data["optimized"][0], data["uniform"][0])
     )
     top = max(float(np.max([p[2].max() for p in data[m][0]])) for m in modes)
-    print(f"Fig. 12: largest difference of the EP's function between the modes {diff:.4f} (peak {top:.4f})")
+    print(f"{stem}: largest difference of the EP's function between the modes {diff:.4f} (peak {top:.4f})")
     levels = np.linspace(0.0, top, 21)
     edges = _mesh_edges(mesh, topo)
-    title = f"seed 002 Fig. 12 (our reading): valence 5, spoke strips {tuple(int(x) for x in FIG12_SPOKES)}, red 8, blue 4"
 
     def frame(ax, patches):
         _draw_edges(ax, edges)
@@ -201,6 +220,7 @@ def figure_12(samples: int = 41) -> None:
         ax.set_xlim(*_zoom(patches, 0)), ax.set_ylim(*_zoom(patches, 1))
         ax.set_xticks([]), ax.set_yticks([])
 
+    written = []
     fig, axes = plt.subplots(1, 2, figsize=(10, 5), constrained_layout=True)
     for ax, mode in zip(axes, modes):
         patches, q = data[mode]
@@ -208,11 +228,15 @@ def figure_12(samples: int = 41) -> None:
             cs = ax.contourf(x, y, v, levels=levels, cmap="viridis", extend="min")
             ax.contour(x, y, v, levels=levels, colors="k", linewidths=0.3)
         frame(ax, patches)
-        ax.set_title(f"{mode} angles: {q.local_maxima[0]} maximum" + ("s" if q.local_maxima[0] != 1 else ""))
+        ax.set_title(f"{mode} angles: {q.local_maxima[0]} maxim" + ("a" if q.local_maxima[0] != 1 else "um"))
+        _mark_maxima(ax, op_of[mode], mesh)
     fig.colorbar(cs, ax=axes, shrink=0.8, label="blending function of the EP")
     fig.suptitle(title)
-    fig.savefig(FIGURES / "fig12_contour.png", dpi=80)
+    fig.savefig(FIGURES / f"{stem}_contour.png", dpi=80)
     plt.close(fig)
+    written.append(f"{stem}_contour.png")
+    if "zebra" not in kinds:
+        return _sizes(written)
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 5), constrained_layout=True)
     for ax, mode in zip(axes, modes):
@@ -225,8 +249,9 @@ def figure_12(samples: int = 41) -> None:
         frame(ax, patches)
         ax.set_title(f"{mode} angles: reflection lines")
     fig.suptitle("zebra: the EP's blending function as a height field (peak = 0.15 x the disc width)")
-    fig.savefig(FIGURES / "fig12_zebra.png", dpi=80)
+    fig.savefig(FIGURES / f"{stem}_zebra.png", dpi=80)
     plt.close(fig)
+    written.append(f"{stem}_zebra.png")
 
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
@@ -254,10 +279,33 @@ def figure_12(samples: int = 41) -> None:
         ax.set_axis_off()
         ax.set_title(f"{mode} angles")
     fig.suptitle(title)
-    fig.savefig(FIGURES / "fig12_surface.png", dpi=80)
+    fig.savefig(FIGURES / f"{stem}_surface.png", dpi=80)
     plt.close(fig)
-    for name in ("fig12_contour.png", "fig12_zebra.png", "fig12_surface.png"):
+    written.append(f"{stem}_surface.png")
+    _sizes(written)
+
+
+def _sizes(names) -> None:
+    for name in names:
         print(f"wrote {FIGURES / name} ({(FIGURES / name).stat().st_size / 1024:.0f} KB)")
+
+
+def _mark_maxima(ax, op, mesh, samples: int = 33) -> None:
+    """Crosses at the EP function's confirmed local maxima (their grid samples)."""
+    from patching.evaluation import _maxima_nodes, _touched_rows, column_values, evaluate_nets, node_values, sample_graph
+
+    rows = _touched_rows(op, np.array([0]))
+    graph = sample_graph(op, rows, samples)
+    values, _ = node_values(graph, column_values(op, [0], rows, samples))
+    heights = blending_maxima(op, [0], samples, rows)[0]
+    nodes, node_heights = _maxima_nodes(values[:, 0], graph.pairs, 1e-10)
+    nets = [net for _, _, _, net in op.evaluate(mesh.vertices).patches()]
+    for node, h in zip(nodes, node_heights):
+        if not np.isclose(heights, h, rtol=0, atol=1e-12).any():
+            continue
+        p, a, b = (int(x[0]) for x in np.nonzero(graph.node == node))
+        xy = evaluate_nets(nets[graph.rows[p]][None], np.array([a / (samples - 1)]), np.array([b / (samples - 1)]))[0, 0]
+        ax.plot(xy[0], xy[1], "r+", markersize=12, markeredgewidth=2)
 
 
 def _first_row(op, row: int) -> int:
