@@ -256,3 +256,23 @@ def test_maxima_that_only_sampling_makes_are_not_counted():
         assert count_local_maxima(values[:, 0], graph.pairs) >= 3
         confirmed = _confirmed_maxima(ridge, graph, column, values[:, 0])
         assert confirmed.size == 1 and confirmed[0] <= 1.0
+
+
+def test_report_on_a_closed_mesh_with_adjacent_eps():
+    """A bipyramid after one subdivision step: two valence-5 apexes and ten valence-3 face
+    centres, each valence-3 EP next to other EPs' patches; random intervals up to 5.  Every EP
+    is reported, the joins agree to round-off, the surface is G1 and every function has a
+    maximum."""
+    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+
+    mesh = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, seed=3)
+    topo = Topology(mesh)
+    op = patching.build_operator(mesh, topology=topo)
+    report = ep_quality(op, mesh, samples=9, topology=topo)
+    assert sorted(q.vertex for q in report) == topo.extraordinary.tolist()
+    assert sorted(q.valence for q in report) == [3] * 10 + [5] * 2
+    for q in report:
+        assert len(q.local_maxima) == 2 * q.valence + 1
+        assert min(q.local_maxima.values()) >= 1
+        assert q.seam_gap <= 1e-13  # sums of O(1) terms, local solves of condition ~1e2 at ratio 5
+        assert q.max_normal_jump_deg <= 1e-7
