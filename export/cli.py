@@ -11,6 +11,7 @@ import json
 import sys
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import patching
@@ -21,6 +22,9 @@ __all__ = ["main"]
 
 ANGLES = ("optimized", "default", "uniform")
 ANCHORS = ("eigen-polyhedron", "extraction")
+#: export.continuity's defaults, repeated so that parsing the command line does not import
+#: OpenCASCADE (1.5 s); tests/test_continuity_table.py checks that they agree.
+CHECK_DEFAULTS = {"worst": 5, "sharp_angle_deg": 10.0, "g1_tolerance_deg": 1e-5}
 
 
 def _progress(args: argparse.Namespace, message: str) -> None:
@@ -28,26 +32,186 @@ def _progress(args: argparse.Namespace, message: str) -> None:
         print(f"nupatch: {message}", file=sys.stderr)
 
 
-def cmd_build(args: argparse.Namespace) -> int:
-    from export.formats import format_of, write
+class _Bar:
+    """A tqdm bar on stderr for work that has taken more than a second (tqdm's ``delay``).
 
-    mesh_path = Path(args.mesh)
-    fmt = args.format
-    out = Path(args.output) if args.output else mesh_path.with_suffix("." + (fmt or "step"))
-    if out.resolve() == mesh_path.resolve():
-        raise NupatchError("the output would overwrite the input mesh", str(out))
-    fmt = format_of(out, fmt)
+    Shown when stderr is a terminal, or when ``NUPATCH_PROGRESS=1`` (logs, tests); never with
+    ``-q``.  A ticker thread refreshes it twice a second, so that one long stage (the B-rep of
+    10,000 faces) shows up while it runs rather than when it ends.
+    """
+
+    DELAY = 1.0
+
+    def __init__(self, args: argparse.Namespace, total: int, unit: str, description: str = "") -> None:
+        import os
+        import threading
+
+        from tqdm import tqdm
+
+        wanted = sys.stderr.isatty() or os.environ.get("NUPATCH_PROGRESS") == "1"
+        self.bar = tqdm(
+            total=total, unit=unit, desc=description, file=sys.stderr, delay=self.DELAY, disable=args.quiet or not wanted,
+            leave=False, dynamic_ncols=True,
+            bar_format="nupatch: {desc} {bar:20} {n_fmt}/{total_fmt} {unit} [{elapsed}]",
+        )
+        self.stop = threading.Event()
+        self.ticker = threading.Thread(target=self._tick, daemon=True)
+        if not self.bar.disable:
+            self.ticker.start()
+
+    def _tick(self) -> None:
+        while not self.stop.wait(0.5):
+            if self.bar.format_dict["elapsed"] >= self.DELAY:
+                self.bar.refresh()
+
+    def describe(self, text: str) -> None:
+        self.bar.set_description_str(text, refresh=False)
+
+    def update(self) -> None:
+        self.bar.update()
+
+    def write(self, line: str) -> None:
+        self.bar.write(line, file=sys.stderr)
+
+    def __enter__(self) -> "_Bar":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        if self.ticker.is_alive():
+            self.ticker.join()
+        self.bar.close()
+
+
+@dataclass(frozen=True)
+class BuildJob:
+    """One mesh to build and write: what a worker process receives (picklable)."""
+
+    mesh: str
+    out: str
+    fmt: str
+    tolerance: float | None
+    angles: str
+    anchors: str
+
+
+#: Stages of one build, for the progress bar.
+STAGES = ("reading", "patches", "B-rep", "writing")
+
+
+def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
+    """Read, build, make the B-rep and write one mesh; returns (faces, patches).  ``stage(name)``
+    is called as each stage starts."""
+    from export.brep import to_shape
+    from export.formats import write
+
+    stage(STAGES[0])
+    mesh = patching.read_mesh(job.mesh)
+    stage(STAGES[1])
+    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors)
+    stage(STAGES[2])
+    shape = to_shape(surface)
+    stage(f"{STAGES[3]} {job.fmt}")
+    write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
+    return mesh.n_faces, surface.n_patches
+
+
+def _build_worker(job: BuildJob) -> tuple[str, str, list[str]]:
+    """Run one job in a worker process: ("ok" | "error" | "bug", message, warnings); never raises."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", patching.NupatchWarning)
+        try:
+            start = time.perf_counter()
+            faces, patches = run_build(job)
+            status, message = "ok", f"{job.mesh}: {patches} patches from {faces} faces, wrote {job.out} ({job.fmt}) in {time.perf_counter() - start:.2f} s"
+        except NupatchError as exc:
+            status, message = "error", f"error: {exc}"
+        except Exception as exc:  # a bug, reported on its own line like the others
+            status, message = "bug", f"internal error: {type(exc).__name__}: {exc} ({job.mesh}; please report)"
+    notes = [str(w.message) for w in caught if issubclass(w.category, patching.NupatchWarning)]
+    return status, message, notes
+
+
+def _jobs(args: argparse.Namespace) -> list[BuildJob]:
+    """One job per mesh, every option and output path checked before any work."""
+    from export.formats import format_of
+
     if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
         raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
-    check_output_path(out)
-    start = time.perf_counter()
-    mesh = patching.read_mesh(mesh_path)
-    surface = patching.build(mesh, angles=args.angles, anchors=args.anchors)
-    _progress(args, f"{surface.n_patches} patches from {mesh.n_faces} faces in {time.perf_counter() - start:.2f} s")
-    start = time.perf_counter()
-    write(surface, out, fmt, tolerance=args.tolerance)
-    _progress(args, f"wrote {out} ({fmt}) in {time.perf_counter() - start:.2f} s")
-    return 0
+    if args.jobs < 1:
+        raise NupatchError(f"-j must be at least 1, not {args.jobs}", "command line")
+    several = len(args.mesh) > 1
+    directory = Path(args.output) if several and args.output else None
+    if directory is not None and not directory.is_dir():
+        raise NupatchError("with several meshes, -o must name an existing directory", str(directory))
+    jobs, seen = [], {}
+    for name in args.mesh:
+        mesh_path = Path(name)
+        suffix = "." + (args.format or "step")
+        if directory is not None:
+            out = directory / (mesh_path.stem + suffix)
+        else:
+            out = Path(args.output) if args.output else mesh_path.with_suffix(suffix)
+        if out.resolve() == mesh_path.resolve():
+            raise NupatchError("the output would overwrite the input mesh", str(out))
+        if out.resolve() in seen:
+            raise NupatchError(f"{name} and {seen[out.resolve()]} would both be written to {out}", "command line")
+        seen[out.resolve()] = name
+        fmt = format_of(out, args.format)
+        check_output_path(out)
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors))
+    return jobs
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    jobs = _jobs(args)
+    if len(jobs) == 1:  # in this process: errors reach main()'s handler (and --debug)
+        start = time.perf_counter()
+        with _Bar(args, len(STAGES), "stages", f"{Path(jobs[0].mesh).name}: {STAGES[0]}") as bar:
+            started = []
+
+            def stage(name: str) -> None:
+                bar.describe(f"{Path(jobs[0].mesh).name}: {name}")
+                if started:
+                    bar.update()
+                started.append(name)
+
+            faces, patches = run_build(jobs[0], stage)
+        _progress(args, f"{patches} patches from {faces} faces, wrote {jobs[0].out} ({jobs[0].fmt}) in {time.perf_counter() - start:.2f} s")
+        return 0
+    return _build_many(args, jobs)
+
+
+def _build_many(args: argparse.Namespace, jobs: list[BuildJob]) -> int:
+    """Build every job in up to ``-j`` processes; each result on its own line, exit 2 if any failed."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    failed = 0
+    with _Bar(args, len(jobs), "meshes") as bar:
+        bar.describe(f"building in {min(args.jobs, len(jobs))} processes")
+
+        def report(result: tuple[str, str, list[str]]) -> None:
+            nonlocal failed
+            status, message, notes = result
+            for note in notes:
+                bar.write(f"nupatch: warning: {note}")
+            if status != "ok":
+                failed += 1
+                bar.write(f"nupatch: {' '.join(message.split())}")
+            elif not args.quiet:
+                bar.write(f"nupatch: {message}")
+            bar.update()
+
+        if args.jobs == 1:
+            for job in jobs:
+                report(_build_worker(job))
+        else:
+            with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
+                for future in as_completed([pool.submit(_build_worker, job) for job in jobs]):
+                    report(future.result())
+    if failed:
+        _progress(args, f"{failed} of {len(jobs)} meshes failed")
+    return 2 if failed else 0
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -142,8 +306,12 @@ def _parser() -> argparse.ArgumentParser:
     from export.formats import FORMATS
 
     p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
-    p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
-    p.add_argument("-o", "--output", metavar="OUT", help="output file (default: MESH with .step, or the --format's suffix)")
+    p.add_argument("mesh", metavar="MESH", nargs="+", help="control mesh(es), OBJ with OpenSubdiv tags")
+    p.add_argument(
+        "-o", "--output", metavar="OUT",
+        help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
+    )
+    p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="build several meshes in N processes (default 1)")
     p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
     p.add_argument(
         "--tolerance", type=float, metavar="T",
@@ -151,7 +319,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--angles", choices=ANGLES, default="optimized", help="angle configuration at extraordinary points (default: optimized)")
     p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="rule for the auxiliary anchors at extraordinary points (default: eigen-polyhedron)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
@@ -159,21 +327,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_info)
 
-    from export.continuity import G1_TOLERANCE_DEG, N_WORST, SHARP_ANGLE_DEG
-
     p = sub.add_parser("check", help="validity and continuity of a STEP file: per-edge G0/G1 table, sharp edges")
     p.add_argument("file", metavar="FILE.step")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--worst", type=int, default=N_WORST, metavar="N", help=f"list the N worst edges by normal jump and by gap (default {N_WORST})")
+    p.add_argument("--worst", type=int, default=CHECK_DEFAULTS["worst"], metavar="N", help=f"list the N worst edges by normal jump and by gap (default {CHECK_DEFAULTS['worst']})")
     p.add_argument("--all", action="store_true", help="list every shared edge")
     p.add_argument("--samples", type=int, default=9, metavar="K", help="samples per shared edge, ends included (default 9)")
     p.add_argument(
-        "--sharp-angle", type=float, default=SHARP_ANGLE_DEG, metavar="DEG",
-        help=f"an edge whose normal jump is at least DEG all along is sharp, a crease (default {SHARP_ANGLE_DEG:g})",
+        "--sharp-angle", type=float, default=CHECK_DEFAULTS["sharp_angle_deg"], metavar="DEG",
+        help=f"an edge whose normal jump is at least DEG all along is sharp, a crease (default {CHECK_DEFAULTS['sharp_angle_deg']:g})",
     )
     p.add_argument(
-        "--g1-tolerance", type=float, default=G1_TOLERANCE_DEG, metavar="DEG",
-        help=f"largest normal jump of a G1 edge (default {G1_TOLERANCE_DEG:g})",
+        "--g1-tolerance", type=float, default=CHECK_DEFAULTS["g1_tolerance_deg"], metavar="DEG",
+        help=f"largest normal jump of a G1 edge (default {CHECK_DEFAULTS['g1_tolerance_deg']:g})",
     )
     p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
     p.set_defaults(func=cmd_check)

@@ -220,3 +220,57 @@ def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
     defaults, explicit, uniform, extraction = outputs.values()
     assert defaults == explicit
     assert len({defaults, uniform, extraction}) == 3
+
+
+# --- issue 5: several meshes in parallel, progress ------------------------------------------
+
+
+def test_many_meshes_in_parallel_each_failure_on_its_own_line(tmp_path, run_cli):
+    good = [tmp_path / f"ring{k}.obj" for k in range(3)]
+    for k, path in enumerate(good):
+        path.write_text(torus_obj(4 + k, 4))
+    bad = [tmp_path / "bad1.obj", tmp_path / "bad2.obj"]
+    bad[0].write_text("v 0 0 zero\n")
+    bad[1].write_text(torus_obj(extra="t interval 2/1/0 0 1 -1\n"))
+    out = tmp_path / "out"
+    out.mkdir()
+    result = run_cli("build", good[0], bad[0], good[1], bad[1], good[2], "-j", "2", "-o", out, "--format", "stl", "-q")
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    errors = [l for l in lines if l.startswith("nupatch: error: ")]
+    assert len(errors) == 2 and len(lines) == 2, result.stderr  # -q: the failures only
+    assert any("bad1.obj:1" in l for l in errors) and any("bad2.obj:33" in l for l in errors)
+    assert sorted(p.name for p in out.iterdir()) == ["ring0.stl", "ring1.stl", "ring2.stl"]
+
+
+def test_many_meshes_need_an_output_directory_and_distinct_names(tmp_path, run_cli):
+    a, b = tmp_path / "a.obj", tmp_path / "sub" / "a.obj"
+    b.parent.mkdir()
+    for path in (a, b):
+        path.write_text(torus_obj())
+    _assert_refused(run_cli("build", a, b, "-o", tmp_path / "nowhere"), "existing directory", "nowhere")
+    _assert_refused(run_cli("build", a, b, "-o", tmp_path), "would both be written", "command line")
+    _assert_refused(run_cli("build", a, "-j", "0"), "-j must be at least 1", "command line")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.obj", "sub"]
+    result = run_cli("build", a, b, "-q")  # beside each mesh
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    assert (tmp_path / "a.step").exists() and (tmp_path / "sub" / "a.step").exists()
+
+
+def test_progress_on_stderr_for_long_builds_and_q_silences_it(tmp_path):
+    import os
+    import subprocess
+
+    from tests.conftest import NUPATCH, REPO
+
+    mesh = tmp_path / "big.obj"
+    mesh.write_text(torus_obj(40, 40))  # 1600 faces: 2-4 s with the imports, over the 1 s delay
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUPATCH_PROGRESS="1")
+    run = lambda *extra: subprocess.run([*NUPATCH, "build", str(mesh), *extra], capture_output=True, text=True, env=env, timeout=600)  # noqa: E731
+    loud = run()
+    assert loud.returncode == 0, loud.stderr
+    assert "big.obj: B-rep" in loud.stderr and "/4 stages" in loud.stderr, loud.stderr
+    last = loud.stderr.replace("\r", "\n").strip().splitlines()[-1]
+    assert last.startswith("nupatch: 1600 patches from 1600 faces, wrote "), last
+    quiet = run("-q")
+    assert quiet.returncode == 0 and quiet.stderr == ""

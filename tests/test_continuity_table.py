@@ -112,3 +112,14 @@ def test_check_cli_prints_the_table_and_require_g1_fails_a_broken_file(tmp_path,
     assert data["n_g0_edges"] == 3 and len(data["edges"]) == 96
     result = run_cli("check", good, "--samples", "1")
     assert result.returncode == 2 and result.stderr.startswith("nupatch: error: ")
+
+
+def test_cli_defaults_are_the_modules():
+    from export import continuity
+    from export.cli import CHECK_DEFAULTS
+
+    assert CHECK_DEFAULTS == {
+        "worst": continuity.N_WORST,
+        "sharp_angle_deg": continuity.SHARP_ANGLE_DEG,
+        "g1_tolerance_deg": continuity.G1_TOLERANCE_DEG,
+    }
