@@ -2,7 +2,7 @@
 blending functions with a single local maximum, optimized angles against the uniform baseline
 of [32], over random knot intervals.  Also the paper's Fig. 12 configuration as pictures.
 
-    .venv/bin/python benchmarks/blending.py [--configs 200] [--samples 17] [--anchors]
+    .venv/bin/python benchmarks/blending.py [--configs 200] [--samples 33] [--anchors]
                                             [--figures] [--seed 2024]
 
 Configurations: the planar disc ``tests.test_evaluation.ep_disc`` (one EP of valence n, three
@@ -102,7 +102,7 @@ def table(configs: int, samples: int, modes, seed: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--configs", type=int, default=200)
-    ap.add_argument("--samples", type=int, default=17)
+    ap.add_argument("--samples", type=int, default=33)
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--anchors", action="store_true", help="also the 'extraction' anchor rule")
     ap.add_argument("--figures", action="store_true", help="only the Fig. 12 pictures")

@@ -10,6 +10,7 @@ it; maxima are counted on patch grids joined along shared corners and sides into
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -135,6 +136,11 @@ class SampleGraph:
     pairs: np.ndarray
     n_nodes: int
 
+    @cached_property
+    def neighbour_table(self):
+        """``_neighbour_table(pairs)``, made once per graph."""
+        return _neighbour_table(self.pairs)
+
 
 def patch_rows(operator: SurfaceOperator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(faces (p,), degree (p,), row_of_face (f,)) over the patches in row order; row_of_face is
@@ -176,9 +182,12 @@ def sample_graph(operator: SurfaceOperator, rows: np.ndarray, samples: int = 17)
     ]
     i = np.concatenate([x.ravel() for x, _ in links])
     j = np.concatenate([y.ravel() for _, y in links])
-    pairs = np.unique(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1), axis=0)
+    n_nodes = int(node.max()) + 1 if node.size else 0
+    pair_key = np.sort(np.minimum(i, j) * n_nodes + np.maximum(i, j))
+    pair_key = pair_key[np.r_[True, pair_key[1:] != pair_key[:-1]]]  # links on seams come twice
+    pairs = np.stack([pair_key // n_nodes, pair_key % n_nodes], axis=1)
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    return SampleGraph(rows, node, pairs, int(node.max()) + 1 if node.size else 0)
+    return SampleGraph(rows, node, pairs, n_nodes)
 
 
 def column_values(operator: SurfaceOperator, columns, rows: np.ndarray, samples: int = 17) -> np.ndarray:
@@ -199,7 +208,8 @@ def column_values(operator: SurfaceOperator, columns, rows: np.ndarray, samples:
             idx = (g.row_offset + (d + 1) ** 2 * local[:, None] + np.arange((d + 1) ** 2)).ravel()
             nets = sub[idx].toarray().reshape(mine.size, d + 1, d + 1, columns.size)
             bern = bernstein(d, u)
-            out[mine] = np.einsum("si,tj,kijc->kstc", bern, bern, nets)
+            half = np.tensordot(bern, nets, axes=(1, 1))  # (s, k, j, c)
+            out[mine] = np.tensordot(half, bern, axes=(2, 1)).transpose(1, 0, 3, 2)  # (k, s, t, c)
         start += count
     return out
 
@@ -211,26 +221,38 @@ def node_values(graph: SampleGraph, values: np.ndarray) -> tuple[np.ndarray, np.
     k = values.shape[-1]
     flat_node = graph.node.ravel()
     flat = values.reshape(-1, k)
-    total = np.zeros((graph.n_nodes, k))
-    np.add.at(total, flat_node, flat)
+    total = np.stack([np.bincount(flat_node, flat[:, c], minlength=graph.n_nodes) for c in range(k)], axis=1)
     count = np.bincount(flat_node, minlength=graph.n_nodes)
     mean = total / np.maximum(count, 1)[:, None]
     gap = np.abs(flat - mean[flat_node]).max(axis=0) if flat.size else np.zeros(k)
     return mean, gap
 
 
-def _maxima_nodes(values: np.ndarray, pairs: np.ndarray, rel_tol: float) -> tuple[np.ndarray, np.ndarray]:
+def _neighbour_table(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Neighbours grouped by node: (nodes that have neighbours, start of each one's group,
+    neighbour ids), for ``np.maximum.reduceat``."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    target = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    source = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    order = np.argsort(target, kind="stable")
+    target, source = target[order], source[order]
+    starts = np.flatnonzero(np.r_[True, target[1:] != target[:-1]]) if target.size else np.zeros(0, np.int64)
+    return target[starts], starts, source
+
+
+def _maxima_nodes(values: np.ndarray, pairs: np.ndarray, rel_tol: float, table=None) -> tuple[np.ndarray, np.ndarray]:
     """(nodes, heights) of the discrete maxima (see ``local_maxima``), highest first; the node
-    of a plateau is its highest one."""
+    of a plateau is its highest one.  table: ``_neighbour_table(pairs)`` if already made."""
     values = np.asarray(values, dtype=np.float64)
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     none = np.zeros(0, np.int64), np.zeros(0)
     if values.size == 0:
         return none
     tol = rel_tol * max(float(np.abs(values).max()), np.finfo(float).tiny)
+    nodes_with, starts, source = table if table is not None else _neighbour_table(pairs)
     higher = np.full(values.size, -np.inf)
-    np.maximum.at(higher, pairs[:, 0], values[pairs[:, 1]])
-    np.maximum.at(higher, pairs[:, 1], values[pairs[:, 0]])
+    if source.size:
+        higher[nodes_with] = np.maximum.reduceat(values[source], starts)
     top = (values > tol) & (higher <= values + tol)
     idx = np.flatnonzero(top)
     if idx.size == 0:
@@ -316,7 +338,7 @@ def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int
     sampling alone makes (a flat ridge crossing the grid obliquely), which otherwise come and
     go with the grid size; it cannot find a bump narrower than the grid.
     """
-    nodes, heights = _maxima_nodes(values, graph.pairs, 1e-10)
+    nodes, heights = _maxima_nodes(values, graph.pairs, 1e-10, graph.neighbour_table)
     if nodes.size <= 1:
         return heights
     m = graph.node.shape[1]
