@@ -274,6 +274,65 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 1 if args.require_g1 and not report.g1 else 0
 
 
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise NupatchError(f"--size must be WIDTHxHEIGHT in pixels, not '{text}'", "command line") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise NupatchError(f"--size {text}: width and height must be 16 to 8192 pixels", "command line")
+    return w, h
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from export.atomic import atomic_output
+    from export.render import render, sample_shape
+
+    source = Path(args.source)
+    out = Path(args.output) if args.output else source.with_suffix(".png")
+    if out.resolve() == source.resolve():
+        raise NupatchError("the output would overwrite the input", str(out))
+    if out.suffix.lower() != ".png":
+        raise NupatchError("render writes PNG images: OUT must end in .png", str(out))
+    size = _size(args.size)
+    if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
+        raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
+    check_output_path(out)
+    start = time.perf_counter()
+    if source.suffix.lower() in (".step", ".stp"):
+        from export.step import read_step
+
+        _require_step(source)
+        shape = read_step(source)
+        lines = None  # the faces' boundary edges
+        tolerance = args.tolerance or 2e-3 * _diagonal(shape)
+    else:
+        from export.brep import to_shape
+
+        mesh = patching.read_mesh(source)
+        surface = patching.build(mesh, angles=args.angles, anchors=args.anchors)
+        shape = to_shape(surface)
+        lines = None
+        if args.mesh:
+            edges = patching.Topology(mesh).edges
+            lines = mesh.vertices[np.asarray(edges)]
+        tolerance = args.tolerance or 2e-3 * surface.size
+    mode = "zebra" if args.zebra else (args.curvature or "shaded")
+    sampled = sample_shape(shape, tolerance, lines)
+    with atomic_output(out) as tmp:
+        used = render(sampled, tmp, mode, size, overlay=args.mesh, renderer=args.renderer)
+    _progress(args, f"drew {out} ({mode}, {size[0]}x{size[1]}, {used}) in {time.perf_counter() - start:.2f} s")
+    return 0
+
+
+def _diagonal(shape) -> float:
+    from export.continuity import _diagonal as diagonal
+
+    return diagonal(shape) or 1.0
+
+
 def _require_step(path: Path) -> None:
     try:
         with open(path, "rb") as fh:
@@ -343,6 +402,25 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
     p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature")
+    p.add_argument("source", metavar="MESH|STEP", help="control mesh (OBJ) or STEP file")
+    p.add_argument("-o", "--output", metavar="OUT.png", help="image (default: the source with .png)")
+    look = p.add_mutually_exclusive_group()
+    look.add_argument("--zebra", action="store_true", help="zebra stripes (reflection lines)")
+    look.add_argument(
+        "--curvature", nargs="?", const="mean", choices=("mean", "gaussian"),
+        help="curvature colour map with a legend: mean (default) or gaussian",
+    )
+    p.add_argument("--mesh", action="store_true", help="overlay the control mesh (MESH) or the faces' edges (STEP)")
+    p.add_argument("--size", default="800x600", metavar="WxH", help="image size in pixels (default 800x600)")
+    p.add_argument("--tolerance", type=float, metavar="T", help="tessellation deflection (default: 2e-3 of the size)")
+    p.add_argument("--renderer", choices=("auto", "vtk", "matplotlib"), default="auto",
+                   help="VTK off-screen, or matplotlib Agg (auto: VTK, matplotlib if VTK has no context)")
+    p.add_argument("--angles", choices=ANGLES, default="optimized", help="as for build")
+    p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="as for build")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(func=cmd_render)
     return parser
 
 
