@@ -36,6 +36,7 @@ __all__ = [
     "count_local_maxima",
     "blending_maxima",
     "spoke_normal_jumps",
+    "prominences",
     "neighbourhood",
     "patch_rows",
 ]
@@ -328,7 +329,16 @@ def _newton_maximum(net: np.ndarray, start: np.ndarray, iterations: int = 40):
 
 
 def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int, values: np.ndarray) -> np.ndarray:
-    """Heights of the local maxima of one blending function (node values (N,)), highest first.
+    """Heights of the local maxima of one blending function (node values (N,)), highest first
+    (``_confirmed_maxima_nodes`` without the nodes)."""
+    return _confirmed_maxima_nodes(operator, graph, column, values)[1]
+
+
+def _confirmed_maxima_nodes(
+    operator: SurfaceOperator, graph: SampleGraph, column: int, values: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes, heights) of the local maxima of one blending function (node values (N,)),
+    highest first.
 
     The discrete maxima of ``local_maxima`` are candidates.  The highest is a maximum (the
     function has a global one).  Each other candidate must be confirmed by the polynomial of
@@ -340,7 +350,7 @@ def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int
     """
     nodes, heights = _maxima_nodes(values, graph.pairs, 1e-10, graph.neighbour_table)
     if nodes.size <= 1:
-        return heights
+        return nodes, heights
     m = graph.node.shape[1]
     step = 1.0 / (m - 1)
     flat = graph.node.ravel()
@@ -351,6 +361,7 @@ def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int
     ).tocsr()
     adjacency = adjacency + adjacency.T
     kept_nodes = [int(nodes[0])]
+    candidates = [int(nodes[0])]
     kept = [float(heights[0])]
     for node, height in zip(nodes[1:].tolist(), heights[1:].tolist()):
         hit = None
@@ -376,8 +387,48 @@ def _confirmed_maxima(operator: SurfaceOperator, graph: SampleGraph, column: int
         if any(k in near for k in kept_nodes):
             continue
         kept_nodes.append(hit)
+        candidates.append(node)
         kept.append(height)
-    return np.array(kept)
+    return np.array(candidates, dtype=np.int64), np.array(kept)
+
+
+def prominences(values: np.ndarray, graph: SampleGraph, nodes: np.ndarray, rel_tol: float = 1e-4) -> np.ndarray:
+    """Topographic prominence of the maxima at ``nodes`` (k,) of a function sampled on a graph:
+    how far one must descend from each to reach higher ground (its height minus that of the
+    highest saddle joining it to a higher node, or to the first of ``nodes`` when they are
+    equally high), inf for the first.  By bisection on the level L: is the node joined to
+    higher ground inside the samples with values >= L (``connected_components`` on the
+    edges whose lower end is >= L)?  To rel_tol times the largest |value|.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    nodes = np.asarray(nodes, dtype=np.int64)
+    out = np.full(nodes.size, np.inf)
+    if nodes.size == 0:
+        return out
+    top = int(np.argmax(values))
+    scale = float(np.abs(values).max())
+    edge_level = np.minimum(values[graph.pairs[:, 0]], values[graph.pairs[:, 1]])
+
+    def joined(k: int, level: float) -> bool:
+        keep = edge_level >= level
+        link = graph.pairs[keep]
+        adjacency = sp.coo_matrix((np.ones(len(link)), (link[:, 0], link[:, 1])), shape=(values.size,) * 2)
+        label = connected_components(adjacency, directed=False)[1]
+        mine = label == label[k]
+        return bool(mine[top] or values[mine].max() > values[k])
+
+    for i, k in enumerate(nodes.tolist()):
+        if k == top or (i == 0 and values[k] >= values[top]):
+            continue
+        lo, hi = 0.0, float(values[k] - values.min())
+        while hi - lo > rel_tol * scale:
+            mid = 0.5 * (lo + hi)
+            if joined(k, values[k] - mid):
+                hi = mid
+            else:
+                lo = mid
+        out[i] = hi
+    return out
 
 
 def blending_maxima(
@@ -461,14 +512,18 @@ class EPQuality:
     point over its whole support: the EP, its edge neighbours and its diagonal neighbours
     (the 2n + 1 points of the faces around it).  ``second_maximum`` gives, per control
     point, the height of its second-highest maximum over the highest (0 with one maximum),
-    to tell a visible bump from a ripple; ``seam_gap`` the largest disagreement between
-    joined samples (round-off: the sampled functions are continuous)."""
+    and ``prominence`` the largest prominence of any other maximum (the depth of the dip
+    that separates it from higher ground, ``prominences``) over the highest value (0 with one
+    maximum), to tell a visible bump from a ripple or from two hills joined by a shallow
+    saddle; ``seam_gap`` the largest disagreement between joined samples (round-off: the
+    sampled functions are continuous)."""
 
     vertex: int
     valence: int
     max_normal_jump_deg: float
     local_maxima: dict[int, int]
     second_maximum: dict[int, float]
+    prominence: dict[int, float]
     seam_gap: float
 
 
@@ -510,12 +565,12 @@ def ep_quality(
         rows = _touched_rows(operator, points)
         graph = sample_graph(operator, rows, samples)
         values, gap = node_values(graph, column_values(operator, points, rows, samples))
-        maxima = {}
-        second = {}
+        maxima, second, prominence = {}, {}, {}
         for k, c in enumerate(points.tolist()):
-            heights = _confirmed_maxima(operator, graph, c, values[:, k])
+            nodes, heights = _confirmed_maxima_nodes(operator, graph, c, values[:, k])
             maxima[c] = int(heights.size)
             second[c] = float(heights[1] / heights[0]) if heights.size > 1 else 0.0
+            prominence[c] = float(prominences(values[:, k], graph, nodes[1:]).max() / heights[0]) if heights.size > 1 else 0.0
         jumps = spoke_normal_jumps(surface, topo, v, samples)
         report.append(
             EPQuality(
@@ -524,6 +579,7 @@ def ep_quality(
                 max_normal_jump_deg=float(jumps.max()),
                 local_maxima=maxima,
                 second_maximum=second,
+                prominence=prominence,
                 seam_gap=float(gap.max()),
             )
         )
