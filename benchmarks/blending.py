@@ -209,7 +209,9 @@ def figure(spokes, stem: str, title: str, samples: int = 41, kinds=("contour", "
         op_of[mode] = op
         print(f"{stem} {mode:>9}: maxima of the EP's function {q.local_maxima[0]}, "
               f"of its 2n neighbours {sorted(set(q.local_maxima.values()))}, "
-              f"largest second maximum {max(q.second_maximum.values()):.2e}, normal jump {q.max_normal_jump_deg:.1e} deg")
+              f"largest second maximum {max(q.second_maximum.values()):.2e} (EP {q.second_maximum[0]:.2e}), "
+              f"largest prominence {max(q.prominence.values()):.2e} (EP {q.prominence[0]:.2e}), "
+              f"normal jump {q.max_normal_jump_deg:.1e} deg")
     diff = max(
         float(np.abs(a[2] - b[2]).max()) for a, b in zip(data["optimized"][0], data["uniform"][0])
     )

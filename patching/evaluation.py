@@ -395,35 +395,39 @@ def _confirmed_maxima_nodes(
 def prominences(values: np.ndarray, graph: SampleGraph, nodes: np.ndarray, rel_tol: float = 1e-4) -> np.ndarray:
     """Topographic prominence of the maxima at ``nodes`` (k,) of a function sampled on a graph:
     how far one must descend from each to reach higher ground (its height minus that of the
-    highest saddle joining it to a higher node, or to the first of ``nodes`` when they are
-    equally high), inf for the first.  By bisection on the level L: is the node joined to
-    higher ground inside the samples with values >= L (``connected_components`` on the
-    edges whose lower end is >= L)?  To rel_tol times the largest |value|.
+    highest saddle joining it to a higher node; for equally high twins, to the other twin),
+    inf for a unique highest node.  By bisection on the level L: is the node joined to higher
+    ground inside the samples with values >= L (``connected_components`` on the edges whose
+    lower end is >= L)?  To rel_tol times the largest |value|.
     """
     values = np.asarray(values, dtype=np.float64)
     nodes = np.asarray(nodes, dtype=np.int64)
     out = np.full(nodes.size, np.inf)
     if nodes.size == 0:
         return out
-    top = int(np.argmax(values))
     scale = float(np.abs(values).max())
     edge_level = np.minimum(values[graph.pairs[:, 0]], values[graph.pairs[:, 1]])
 
-    def joined(k: int, level: float) -> bool:
+    def joined(k: int, level: float, twin: int) -> bool:
         keep = edge_level >= level
         link = graph.pairs[keep]
         adjacency = sp.coo_matrix((np.ones(len(link)), (link[:, 0], link[:, 1])), shape=(values.size,) * 2)
         label = connected_components(adjacency, directed=False)[1]
         mine = label == label[k]
-        return bool(mine[top] or values[mine].max() > values[k])
+        return bool((twin >= 0 and mine[twin]) or values[mine].max() > values[k])
 
     for i, k in enumerate(nodes.tolist()):
-        if k == top or (i == 0 and values[k] >= values[top]):
-            continue
+        twin = -1
+        if not (values > values[k]).any():
+            twins = np.flatnonzero(values == values[k])
+            twins = twins[twins != k]
+            if twins.size == 0:
+                continue  # the unique highest node
+            twin = int(twins[0])
         lo, hi = 0.0, float(values[k] - values.min())
         while hi - lo > rel_tol * scale:
             mid = 0.5 * (lo + hi)
-            if joined(k, values[k] - mid):
+            if joined(k, values[k] - mid, twin):
                 hi = mid
             else:
                 lo = mid

@@ -286,6 +286,9 @@ def test_prominence_is_the_depth_of_the_dip():
     graph = SampleGraph(np.zeros(0, np.int64), np.zeros((0, 3, 3), np.int64), path, 9)
     # bisection to 1e-4 of the largest value (3)
     np.testing.assert_allclose(prominences(values, graph, np.array([2, 4, 6])), [np.inf, 0.5, 0.4], atol=3e-4)
+    # equally high twins: each is as prominent as the dip between them
+    twins = np.array([0, 1, 3, 2, 3, 1, 0, 0, 0.0])
+    np.testing.assert_allclose(prominences(twins, graph, np.array([4, 2])), [1.0, 1.0], atol=3e-4)
 
 
 def test_two_hills_of_the_symmetric_ratio_20_configuration():
