@@ -20,8 +20,8 @@ control-point heights (the operator does not see positions).  --anchors adds the
 Columns: share of functions with one maximum (EP / edge neighbours / diagonal neighbours /
 all), share of configurations where all 2n + 1 have one, share of functions whose other maxima
 (if any) all have a prominence below 1% of the peak, the worst second maximum relative to the
-first ("2nd max") and the worst prominence relative to the peak ("prom"), the largest normal jump (degrees), and seconds per configuration for building M and
-for the report.
+first ("2nd max") and the worst prominence relative to the peak ("prom"), the largest normal
+jump (degrees), and seconds per configuration for building M and for the report.
 """
 
 from __future__ import annotations
