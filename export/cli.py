@@ -93,8 +93,11 @@ class BuildJob:
     tolerance: float | None
     angles: str
     anchors: str
+    pack: bool = False
 
 
+#: Formats that carry the exact B-rep, so that --pack applies to them.
+EXACT_FORMATS = ("step", "iges", "brep")
 #: Stages of one build, for the progress bar.
 STAGES = ("reading", "patches", "B-rep", "writing")
 
@@ -110,7 +113,12 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
     stage(STAGES[1])
     surface = patching.build(mesh, angles=job.angles, anchors=job.anchors)
     stage(STAGES[2])
-    shape = to_shape(surface)
+    if job.pack and job.fmt in EXACT_FORMATS:
+        from export.pack import patch_spans, to_packed_shape
+
+        shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
+    else:
+        shape = to_shape(surface)
     stage(f"{STAGES[3]} {job.fmt}")
     write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
     return mesh.n_faces, surface.n_patches
@@ -159,7 +167,7 @@ def _jobs(args: argparse.Namespace) -> list[BuildJob]:
         seen[out.resolve()] = name
         fmt = format_of(out, args.format)
         check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors))
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack))
     return jobs
 
 
@@ -378,6 +386,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--angles", choices=ANGLES, default="optimized", help="angle configuration at extraordinary points (default: optimized)")
     p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="rule for the auxiliary anchors at extraordinary points (default: eigen-polyhedron)")
+    p.add_argument(
+        "--pack", action="store_true",
+        help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
     p.set_defaults(func=cmd_build)
 

@@ -1,0 +1,388 @@
+"""Packed faces: rectangular blocks of bicubic patches as one multi-span B-spline face (issue 5).
+
+A regular region of the surface is, by construction (DESIGN 2, 3), one non-uniform bicubic
+B-spline; ``to_shape`` nevertheless makes one Bézier face per patch.  Here blocks of bicubic
+patches that lie in a rectangular grid become one ``Geom_BSplineSurface`` face each, re-using
+the patches' coefficients only (no geometry rule is recomputed, STYLE 1):
+
+1. Blocks.  From a seed patch the block grows along its s direction across side 1 while the
+   next patch is bicubic and free, then row by row across side 2 while every patch above is
+   bicubic, free and the rows stay a grid (the patch right of each one is the next one above).
+   Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the net, spans
+   swapped).  A row or column that would close the block on itself (a full ring of a torus)
+   is left out, so no packed face needs a seam.
+2. Surface.  The block's nets become the poles of a bicubic B-spline with every interior knot
+   of multiplicity 3 (the Bézier form: exactly the patches), knots at the cumulative knot
+   intervals of the block's columns and rows (``patching.operator.face_spans``, the intervals
+   the patches were extracted with), so that the joins are C2 in this parametrisation; then
+   OpenCASCADE removes each interior knot down to multiplicity 1 (``RemoveUKnot``/
+   ``RemoveVKnot``), which succeeds where the join is C2 to within ``KNOT_TOLERANCE``, else
+   down to 2 (a C1 join, beside a zero interval).
+3. Check.  The packed surface is evaluated at a 5 x 5 grid of every patch of the block and
+   compared with the patch (de Casteljau via ``patching.evaluation.evaluate_nets``); a block
+   that differs by more than ``EXACTNESS`` (relative to the surface size) is not packed
+   (its patches stay Bézier faces), so the surface is never changed.
+4. B-rep.  As ``export.brep.to_shape``, with shared vertices and edges: every patch side on a
+   block's boundary keeps its own edge (so neighbours, packed or not, share it), with a
+   degree-1 pcurve on the packed face from the side's start to its end in the block's (u, v):
+   the B-spline restricted to one span is the patch reparametrised linearly, so SameParameter
+   holds exactly.  Edges inside a block disappear.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from OCP.BRep import BRep_Builder
+from OCP.Geom import Geom_BSplineSurface
+from OCP.Geom2d import Geom2d_BezierCurve
+from OCP.gp import gp_Pnt, gp_Pnt2d
+from OCP.TColgp import TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
+from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
+from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Shell, TopoDS_Solid, TopoDS_Vertex, TopoDS_Wire
+
+from patching.evaluation import evaluate_nets
+from patching.surface import CORNER_PARAMETERS, BezierSurface
+
+from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, shape_tolerance
+
+__all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
+
+#: Knot removal tolerance (model units, times the surface size): C2 joins of patches computed
+#: in double precision agree to ~1e-15; 1e-13 leaves room for round-off only.
+KNOT_TOLERANCE = 1e-13
+#: Largest allowed difference between a packed face and its patches, times the surface size.
+EXACTNESS = 1e-12
+#: Blocks have at most this many patches a side (keeps each face's pole grid moderate).
+MAX_SIDE = 128
+
+
+@dataclass(frozen=True)
+class Block:
+    """A w x h grid of patch rows: rows[i, j] is the patch at column i (along u), row j (along
+    v); turns[i, j] how many quarter turns its net is rotated (side k of the block = the
+    patch's original side (k + turns) mod 4); du (w,), dv (h,) the knot intervals."""
+
+    rows: np.ndarray
+    turns: np.ndarray
+    du: np.ndarray
+    dv: np.ndarray
+
+
+def _neighbours(surface: BezierSurface) -> np.ndarray:
+    """(p, 4, 2) int64: (row, side) across each side; (-1, -1) on a boundary or where an edge
+    has other than two sides (left unpacked)."""
+    side_edge = np.asarray(surface.topology.side_edge)
+    users: dict[int, list[tuple[int, int]]] = {}
+    for (row, side), eid in np.ndenumerate(side_edge):
+        users.setdefault(int(eid), []).append((row, side))
+    out = np.full(side_edge.shape + (2,), -1, dtype=np.int64)
+    for pair in users.values():
+        if len(pair) == 2 and pair[0][0] != pair[1][0]:
+            (ra, sa), (rb, sb) = pair
+            out[ra, sa] = (rb, sb)
+            out[rb, sb] = (ra, sa)
+    return out
+
+
+def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
+    """Rectangular blocks of at least 2 bicubic patches (module docstring, step 1).
+
+    spans: (p, 2) float64, the knot intervals of each patch along its s and t."""
+    p = surface.n_patches
+    cubic = np.zeros(p, dtype=bool)
+    offset = 0
+    for g in surface.groups:
+        cubic[offset : offset + len(g.faces)] = g.degree == 3
+        offset += len(g.faces)
+    nb = _neighbours(surface)
+    free = cubic.copy()
+
+    def across(row: int, turn: int, side: int):
+        """(row, turn) of the patch across block side ``side`` of (row, turn), placed in the
+        block's frame, or None."""
+        r, s = nb[row, (side + turn) % 4]
+        if r < 0:
+            return None
+        return int(r), int((s - (side + 2)) % 4)  # its side s plays the opposite block side
+
+    blocks = []
+    for seed in range(p):
+        if not free[seed]:
+            continue
+        row0 = [(seed, 0)]
+        taken = {seed}
+        while len(row0) < MAX_SIDE:
+            nxt = across(*row0[-1], 1)
+            if nxt is None or not free[nxt[0]] or nxt[0] in taken:
+                break
+            row0.append(nxt)
+            taken.add(nxt[0])
+        if len(row0) > 1 and (x := across(*row0[-1], 1)) is not None and x[0] == seed:
+            taken.discard(row0.pop()[0])  # a full ring: the face would need a seam
+        grid = [row0]
+        while len(grid) < MAX_SIDE:
+            above = [across(r, t, 2) for r, t in grid[-1]]
+            if any(a is None or not free[a[0]] or a[0] in taken for a in above):
+                break
+            ids = [a[0] for a in above]
+            if len(set(ids)) != len(ids):
+                break
+            # A grid: right of each patch above is the next one above.
+            if any(across(*above[i], 1) != above[i + 1] for i in range(len(above) - 1)):
+                break
+            grid.append(above)
+            taken.update(ids)
+        if len(grid) > 1 and any(across(r, t, 2) is not None and across(r, t, 2)[0] == grid[0][i][0]
+                                 for i, (r, t) in enumerate(grid[-1])):
+            for r, _ in grid.pop():
+                taken.discard(r)
+        if len(taken) < 2:
+            continue
+        rows = np.array([[r for r, _ in line] for line in grid], dtype=np.int64).T  # (w, h)
+        turns = np.array([[t for _, t in line] for line in grid], dtype=np.int64).T
+        span = spans[rows]  # (w, h, 2) in each patch's own frame
+        odd = turns % 2 == 1
+        du = np.where(odd, span[..., 1], span[..., 0])
+        dv = np.where(odd, span[..., 0], span[..., 1])
+        if not (np.allclose(du, du[:, :1], rtol=1e-12) and np.allclose(dv, dv[:1, :], rtol=1e-12)):
+            continue  # not one knot grid: leave the patches alone
+        free[rows.ravel()] = False
+        blocks.append(Block(rows, turns, du[:, 0].copy(), dv[0, :].copy()))
+    return blocks
+
+
+def _nets(surface: BezierSurface) -> list[np.ndarray]:
+    return [net for _, _, _, net in surface.patches()]
+
+
+def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
+    """The B-spline of a block (steps 2 and 3), or None if it is not the patches to EXACTNESS."""
+    w, h = block.rows.shape
+    turned = np.empty((w, h, 4, 4, 3))
+    for i in range(w):
+        for j in range(h):
+            turned[i, j] = np.rot90(nets[block.rows[i, j]], -int(block.turns[i, j]), axes=(0, 1))
+    poles = TColgp_Array2OfPnt(1, 3 * w + 1, 1, 3 * h + 1)
+    grid = np.empty((3 * w + 1, 3 * h + 1, 3))
+    for i in range(w):
+        for j in range(h):
+            grid[3 * i : 3 * i + 4, 3 * j : 3 * j + 4] = turned[i, j]
+    for a in range(3 * w + 1):
+        for b in range(3 * h + 1):
+            x, y, z = grid[a, b]
+            poles.SetValue(a + 1, b + 1, gp_Pnt(float(x), float(y), float(z)))
+    u = np.concatenate([[0.0], np.cumsum(block.du)])
+    v = np.concatenate([[0.0], np.cumsum(block.dv)])
+
+    def knots(values):
+        k = TColStd_Array1OfReal(1, len(values))
+        m = TColStd_Array1OfInteger(1, len(values))
+        for i, x in enumerate(values):
+            k.SetValue(i + 1, float(x))
+            m.SetValue(i + 1, 4 if i in (0, len(values) - 1) else 3)
+        return k, m
+
+    uk, um = knots(u)
+    vk, vm = knots(v)
+    bspline = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, False, False)
+    tol = KNOT_TOLERANCE * size
+    # To multiplicity 1 (C2 join), else 2 (C1: a zero interval beside it, a double knot).
+    for i in range(len(u) - 1, 1, -1):
+        bspline.RemoveUKnot(i, 1, tol) or bspline.RemoveUKnot(i, 2, tol)
+    for j in range(len(v) - 1, 1, -1):
+        bspline.RemoveVKnot(j, 1, tol) or bspline.RemoveVKnot(j, 2, tol)
+    # Step 3: the packed surface against every patch on a 5 x 5 grid.
+    s = np.linspace(0.0, 1.0, 5)
+    ss, tt = (a.ravel() for a in np.meshgrid(s, s, indexing="ij"))
+    expected = evaluate_nets(turned.reshape(-1, 4, 4, 3), ss, tt)  # (w*h, 25, 3)
+    got = np.array([
+        bspline.Value(float(u[i] + a * block.du[i]), float(v[j] + b * block.dv[j])).Coord()
+        for i in range(w) for j in range(h) for a, b in zip(ss, tt)
+    ]).reshape(expected.shape)
+    worst = float(np.linalg.norm(got - expected, axis=-1).max())
+    if worst > EXACTNESS * max(size, 1e-300):
+        return None, u, v
+    return bspline, u, v
+
+
+def _line(a, b) -> Geom2d_BezierCurve:
+    """Degree-1 pcurve from a to b with parameter w in [0, 1]."""
+    poles = TColgp_Array1OfPnt2d(1, 2)
+    poles.SetValue(1, gp_Pnt2d(float(a[0]), float(a[1])))
+    poles.SetValue(2, gp_Pnt2d(float(b[0]), float(b[1])))
+    return Geom2d_BezierCurve(poles)
+
+
+@dataclass(frozen=True)
+class PackReport:
+    """faces of the packed B-rep; packed_faces of them B-spline blocks covering packed_patches
+    of the surface's patches; blocks: the packed blocks, in face order (faces 0 ..
+    packed_faces - 1 of the shape, in ``TopExp.MapShapes`` order), with their knots u, v."""
+
+    faces: int
+    packed_faces: int
+    packed_patches: int
+    patches: int
+    blocks: tuple[tuple[Block, np.ndarray, np.ndarray], ...]
+
+
+def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = True) -> tuple[TopoDS_Shape, PackReport]:
+    """The B-rep of ``surface`` with regular blocks packed (module docstring): a solid when
+    closed, else a shell, checked by ``BRepCheck_Analyzer`` unless ``check`` is False.
+
+    spans: (p, 2) knot intervals of every patch along its s and t (``patch_spans``)."""
+    topo = surface.topology
+    nets = _nets(surface)
+    tol = shape_tolerance(surface)
+    builder = BRep_Builder()
+    corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
+    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
+    side_reversed = np.asarray(topo.side_reversed, dtype=bool)
+
+    faces_plan = []  # ("patch", row) or ("block", block, bspline, u, v)
+    in_block = np.zeros(len(nets), dtype=bool)
+    for block in find_blocks(surface, spans):
+        bspline, u, v = _packed_surface(block, nets, float(surface.size))
+        if bspline is None:
+            continue
+        in_block[block.rows.ravel()] = True
+        faces_plan.append(("block", block, bspline, u, v))
+    faces_plan += [("patch", row) for row in range(len(nets)) if not in_block[row]]
+
+    # Sides on a face boundary: every side of a lone patch, the outer sides of a block.
+    used_sides: list[tuple[int, int]] = []
+    for plan in faces_plan:
+        if plan[0] == "patch":
+            used_sides += [(plan[1], k) for k in range(4)]
+        else:
+            used_sides += [(r, (k + t) % 4) for r, t, k in _boundary(plan[1])]
+    used_edges = {int(side_edge[r, k]) for r, k in used_sides}
+
+    vertices: dict[int, TopoDS_Vertex] = {}
+
+    def vertex(vid: int, point) -> TopoDS_Vertex:
+        if vid not in vertices:
+            v = TopoDS_Vertex()
+            builder.MakeVertex(v, gp_Pnt(*(float(c) for c in point)), tol)
+            vertices[vid] = v
+        return vertices[vid]
+
+    edges: dict[int, TopoDS_Edge] = {}
+    for row, net in enumerate(nets):  # in row order, so an edge's curve is its first side's
+        d = net.shape[0] - 1
+        corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
+        for k in range(4):
+            eid = int(side_edge[row, k])
+            if eid in edges or eid not in used_edges:
+                continue
+            rev = bool(side_reversed[row, k])
+            curve_row = _side_row(net, k)[::-1] if rev else _side_row(net, k)
+            e = TopoDS_Edge()
+            builder.MakeEdge(e, _bezier_curve(curve_row), tol)
+            a, b = ((k + 1) % 4, k) if rev else (k, (k + 1) % 4)
+            builder.Add(e, vertex(int(corner_vertex[row, a]), corners[a]).Oriented(TopAbs_FORWARD))
+            builder.Add(e, vertex(int(corner_vertex[row, b]), corners[b]).Oriented(TopAbs_REVERSED))
+            edges[eid] = e
+
+    faces = []
+    for plan in faces_plan:
+        f = TopoDS_Face()
+        if plan[0] == "patch":
+            row = plan[1]
+            builder.MakeFace(f, _bezier_surface(nets[row]), tol)
+            sides = [(row, k, _pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
+        else:
+            _, block, bspline, u, v = plan
+            builder.MakeFace(f, bspline, tol)
+            sides = []
+            for r, t, k, (i, j) in _boundary(block, with_cell=True):
+                corner = lambda c: (u[i] + CORNER_PARAMETERS[c][0] * block.du[i], v[j] + CORNER_PARAMETERS[c][1] * block.dv[j])  # noqa: E731
+                a, b = corner(k), corner((k + 1) % 4)
+                original = (k + t) % 4
+                if side_reversed[r, original]:
+                    a, b = b, a
+                sides.append((r, original, _line(a, b)))
+        pcurves: dict[int, dict[bool, object]] = {}
+        for r, k, c in sides:
+            pcurves.setdefault(int(side_edge[r, k]), {})[bool(side_reversed[r, k])] = c
+        for eid, by_orientation in pcurves.items():
+            if len(by_orientation) == 2:
+                builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], f, tol)
+            else:
+                (c,) = by_orientation.values()
+                builder.UpdateEdge(edges[eid], c, f, tol)
+        wire = TopoDS_Wire()
+        builder.MakeWire(wire)
+        for r, k, _ in sides:
+            e = edges[int(side_edge[r, k])]
+            builder.Add(wire, e.Oriented(TopAbs_REVERSED if side_reversed[r, k] else TopAbs_FORWARD))
+        wire.Closed(True)
+        builder.Add(f, wire)
+        faces.append(f)
+
+    for e in edges.values():
+        builder.Range(e, 0.0, 1.0)
+        builder.SameRange(e, True)
+        builder.SameParameter(e, True)
+    shell = TopoDS_Shell()
+    builder.MakeShell(shell)
+    for f in faces:
+        builder.Add(shell, f)
+    shape: TopoDS_Shape = shell
+    if topo.is_closed:
+        shell.Closed(True)
+        solid = TopoDS_Solid()
+        builder.MakeSolid(solid)
+        builder.Add(solid, shell)
+        if _signed_volume(surface) < 0.0:  # as to_shape's test, without OCC's slow integration of multi-span faces
+            solid = TopoDS_Solid()
+            builder.MakeSolid(solid)
+            builder.Add(solid, shell.Reversed())
+        shape = solid
+    if check:
+        from OCP.BRepCheck import BRepCheck_Analyzer
+
+        if not BRepCheck_Analyzer(shape).IsValid():
+            raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")
+    blocks = tuple((p[1], p[3], p[4]) for p in faces_plan if p[0] == "block")
+    return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)
+
+
+def _signed_volume(surface: BezierSurface) -> float:
+    """Volume enclosed by the patches, 1/3 of the sum of the integrals of S . (S_s x S_t), by
+    Gauss-Legendre with 10 nodes (exact for degree <= 5): its sign orients the solid."""
+    x, weights = np.polynomial.legendre.leggauss(10)
+    x, weights = (x + 1) / 2, weights / 2
+    s, t = (a.ravel() for a in np.meshgrid(x, x, indexing="ij"))
+    w = np.outer(weights, weights).ravel()
+    total = 0.0
+    for g in surface.groups:
+        p, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
+        total += float(np.einsum("m,kmc,kmc->", w, p, np.cross(ds, dt))) / 3
+    return total
+
+
+def _boundary(block: Block, with_cell: bool = False):
+    """(row, turn, block side k[, (i, j)]) of the block's boundary, counter-clockwise: the
+    bottom row's sides 0 left to right, the right column's sides 1 upwards, the top row's
+    sides 2 right to left, the left column's sides 3 downwards."""
+    w, h = block.rows.shape
+    cells = [(i, 0, 0) for i in range(w)] + [(w - 1, j, 1) for j in range(h)]
+    cells += [(i, h - 1, 2) for i in range(w - 1, -1, -1)] + [(0, j, 3) for j in range(h - 1, -1, -1)]
+    for i, j, k in cells:
+        item = (int(block.rows[i, j]), int(block.turns[i, j]), k)
+        yield item + ((i, j),) if with_cell else item
+
+
+def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
+    """(p, 2) knot intervals of every patch along its s and t, from the mesh it was built from
+    (``patching.operator.face_spans``: the intervals of the face's edges h0 and h1)."""
+    from patching.operator import face_spans
+    from patching.topology import Topology
+
+    spans = face_spans(Topology(mesh))
+    faces = np.array([face for _, _, face, _ in surface.patches()], dtype=np.int64)
+    return spans[faces]
