@@ -1,7 +1,8 @@
 """nupatch's edge to CAD: BezierSurface -> OpenCASCADE B-rep -> files (STEP).
 
 Public API (STYLE 4): ``to_shape`` (B-rep), ``to_step`` (build and write atomically),
-``to_build123d`` / ``to_cadquery`` (the B-rep as a CAD library's object),
+``to_build123d`` / ``to_cadquery`` (the B-rep as a CAD library's object), ``write`` (any
+format of ``export.formats``),
 ``check_continuity`` (validity, gaps and normal jumps of a B-rep or STEP file).
 """
 
@@ -12,7 +13,7 @@ from pathlib import Path
 
 from patching.surface import BezierSurface
 
-__all__ = ["to_shape", "to_step", "to_build123d", "to_cadquery", "write_step", "read_step", "check_continuity"]
+__all__ = ["to_shape", "to_step", "to_build123d", "to_cadquery", "write", "write_step", "read_step", "check_continuity"]
 
 
 def to_shape(surface: BezierSurface):
@@ -42,6 +43,14 @@ def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhed
     from .cad import to_cadquery as _to_cadquery
 
     return _to_cadquery(source, angles, anchors)
+
+
+def write(surface: BezierSurface, path: str | os.PathLike, format: str | None = None, *, tolerance: float | None = None) -> Path:
+    """Write ``surface`` atomically as step, iges, brep, stl, glb or obj (default: from the
+    suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
+    from .formats import write as _write
+
+    return _write(surface, path, format, tolerance=tolerance)
 
 
 def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:
