@@ -79,14 +79,6 @@ class SurfaceOperator:
 def _refuse_unsupported(topo: Topology) -> None:
     """Refuse, with the place named, what later issues will build: never a wrong surface."""
     mesh = topo.mesh
-    sizes = mesh.face_sizes
-    nonquad = np.flatnonzero(sizes != 4)
-    if nonquad.size:
-        f = int(nonquad[0])
-        raise UnsupportedError(
-            f"face {f} has {int(sizes[f])} vertices; non-quad faces are not supported yet",
-            mesh.where("face", f),
-        )
     sharp = np.flatnonzero(topo.edge_sharpness > 0)
     if sharp.size:
         a, b = (int(x) for x in topo.edges[sharp[0]])
@@ -112,8 +104,9 @@ def build_operator(
     force_extraordinary: Sequence[int] = (),
     anchors: str = "eigen-polyhedron",
 ) -> SurfaceOperator:
-    """Build M for an all-quad mesh: bicubic patches on regular faces, G1 bi-quintic patches
-    on faces touching extraordinary points (seed 002, section 3).
+    """Build M for a closed polygon mesh: bicubic patches on regular faces, G1 bi-quintic
+    patches on faces touching extraordinary points (seed 002, section 3); a mesh with
+    non-quad faces is first subdivided once (``subdivision``), and M includes that step.
 
     angles: the angle configuration at EPs, "optimized" (seed 002 section 3.3, default),
     "default" (the heuristic angles) or "uniform" (2 pi / n, the baseline of [32]).
@@ -121,13 +114,31 @@ def build_operator(
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     topo = topology or Topology(mesh)
+    if not mesh.is_quad_mesh:
+        # Seed 002 patches quads only: one subdivision step turns every polygon into quads
+        # (issue 4, done globally for now), and M of the refined mesh composed with the step's
+        # S is again an operator on the original control points.  Regular quad regions are
+        # unchanged as surfaces (a step there is knot insertion).
+        from .subdivision import subdivision_operator
+
+        step, refined = subdivision_operator(mesh, rules="seed")
+        inner = build_operator(refined, angles=angles, force_extraordinary=(), anchors=anchors)
+        return SurfaceOperator((inner.matrix @ step).tocsr(), inner.groups, inner.topology, mesh.name)
     _refuse_unsupported(topo)
     spans = face_spans(topo)
     faces = np.flatnonzero(np.all(spans > 0, axis=1))
     _refuse_boundary_patches(topo, faces)
     eps = np.union1d(topo.extraordinary, np.asarray(force_extraordinary, dtype=np.int64))
-    if eps.size and (topo.vertex_is_boundary[eps].any() or (topo.valence[eps] < 3).any()):
-        raise UnsupportedError("only interior vertices of valence >= 3 can be extraordinary points", mesh.name)
+    low = eps[topo.valence[eps] < 3]
+    if low.size:
+        v = int(low[0])
+        raise UnsupportedError(
+            f"vertex {v} has valence {int(topo.valence[v])}: valence-2 vertices are not supported yet",
+            mesh.where("vertex", v),
+        )
+    if topo.vertex_is_boundary[eps].any():
+        v = int(eps[topo.vertex_is_boundary[eps]][0])
+        raise UnsupportedError(f"vertex {v} is on a boundary: it cannot be forced extraordinary", mesh.where("vertex", v))
     _refuse_degenerate_eps(topo, eps)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True

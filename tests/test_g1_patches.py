@@ -284,3 +284,33 @@ def test_eigen_polyhedron_anchors_fix_the_limit_point_and_normal():
     normal /= np.linalg.norm(normal)
     spread = anchors - point
     assert np.abs(spread @ normal).max() <= 1e-10 * surface.size
+
+
+def test_non_quad_faces_are_subdivided_once_and_patched():
+    """A pyramid (four triangles and a quad): one subdivision step, then G1 patches; the
+    operator still acts on the five original control points."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0]])
+    f = [[0, 3, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]
+    mesh = patching.from_arrays(v, f, name="pyramid")
+    op = patching.build_operator(mesh)
+    assert op.matrix.shape[1] == 5
+    np.testing.assert_allclose(op.row_sums, 1.0, atol=1e-13)
+    surface = op.evaluate(v)
+    assert surface.n_patches == 4 * 1 + 4 * 3
+    angle, gap = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-7 and gap <= 1e-12
+    assert surface.topology.is_closed
+    # unequal intervals around a triangle have no consistent split yet: refused in one line
+    uneven = patching.from_arrays(v, f, intervals={(0, 1): 2.0}, name="pyramid")
+    with pytest.raises(patching.UnsupportedError, match="face 1"):
+        patching.build_operator(uneven)
+
+
+def test_valence_two_vertex_is_refused_naming_it():
+    mesh = quad_mesh_with_eps("cube")
+    # two quads glued along three edges leave valence-2 vertices: refused, never wrong
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    flat = patching.from_arrays(v, [[0, 1, 2, 3], [0, 3, 2, 1]], name="pillow")
+    with pytest.raises(patching.UnsupportedError, match="valence"):
+        patching.build_operator(flat)
+    assert mesh.n_faces == 6
