@@ -379,10 +379,19 @@ def _boundary(block: Block, with_cell: bool = False):
 
 def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
     """(p, 2) knot intervals of every patch along its s and t, from the mesh it was built from
-    (``patching.operator.face_spans``: the intervals of the face's edges h0 and h1)."""
+    (``patching.operator.face_spans``: the intervals of the face's edges h0 and h1).  Wrong
+    spans could not change the surface (a span of the triple-knot B-spline is its patch
+    whatever its length), only keep knots from being removed."""
     from patching.operator import face_spans
     from patching.topology import Topology
 
+    if not mesh.is_quad_mesh:
+        # build_operator patches the once-subdivided mesh then (issue 4): its faces are those.
+        from patching.subdivision import subdivision_operator
+
+        _, mesh = subdivision_operator(mesh, rules="seed")
     spans = face_spans(Topology(mesh))
     faces = np.array([face for _, _, face, _ in surface.patches()], dtype=np.int64)
+    if faces.size and faces.max() >= len(spans):
+        raise ValueError("the surface's faces are not the mesh's: was it built from this mesh?")
     return spans[faces]

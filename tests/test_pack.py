@@ -34,7 +34,16 @@ def turned_torus() -> patching.ControlMesh:
     return patching.from_arrays(base.vertices, faces, intervals=dict(base.intervals), name="turned")
 
 
+def split_torus() -> patching.ControlMesh:
+    """An 8 x 6 torus with one quad split into two triangles (build subdivides it once)."""
+    base = torus_grid(8, 6, name="split")
+    a, b, c, d = (int(x) for x in base.face(0))
+    faces = [[a, b, c], [a, c, d]] + [list(base.face(f)) for f in range(1, base.n_faces)]
+    return patching.from_arrays(base.vertices, faces, name="split")
+
+
 MESHES = {
+    "non-quad faces": split_torus,
     "torus with a zero strip": lambda: patching.read_mesh("models/torus_nonuniform.obj"),
     "turned faces": turned_torus,
     "EP model": ell_mesh,
@@ -63,6 +72,10 @@ def test_packed_faces_are_the_patches(name):
     worst = 0.0
     for k, (block, u, v) in enumerate(report.blocks):
         bspline = BRep_Tool.Surface_s(faces[k])
+        # Knots removed down to C2 (w + 3 poles), one C1 knot (+1) beside the zero strip:
+        # with wrong knot intervals the joins would not be C2 and 3 w + 1 poles would stay.
+        w, h = block.rows.shape
+        assert bspline.NbUPoles() <= w + 4 and bspline.NbVPoles() <= h + 4, (w, h, bspline.NbUPoles(), bspline.NbVPoles())
         for (i, j), row in np.ndenumerate(block.rows):
             # The patch in the block's frame: turned as the block says, at its span of knots.
             net = np.rot90(nets[row], -int(block.turns[i, j]), axes=(0, 1))
