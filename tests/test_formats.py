@@ -155,11 +155,22 @@ def test_every_format_write_is_atomic(tmp_path, ring, monkeypatch, fmt):
     assert path.stat().st_size > 3
 
 
-def test_gltf_normals_are_the_patch_normals(tmp_path, ring):
+@pytest.fixture(scope="module")
+def ell():
+    """An EP model: bicubic and bi-quintic patches (two groups, rows offset)."""
+    from tests.test_cad import ell_mesh
+
+    surface = patching.build(ell_mesh())
+    assert [g.degree for g in surface.groups] == [3, 5]
+    return surface, to_shape(surface)
+
+
+@pytest.mark.parametrize("model", ["ring", "ell"])
+def test_gltf_normals_are_the_patch_normals(tmp_path, request, model):
     """At every stored vertex, OCC's own surface normal (GeomLProp) at the stored (s, t) of the
     stored patch agrees with the file's normal: float32 storage leaves ~1e-7 rad, the bound 1e-6."""
-    surface, shape = ring
-    path = write(surface, tmp_path / "ring.glb", shape=shape, tolerance=0.01)
+    surface, shape = request.getfixturevalue(model)
+    path = write(surface, tmp_path / "model.glb", shape=shape, tolerance=0.01 * surface.size / 10)
     _, attributes, _ = read_glb(path)
     faces = faces_of(shape)
     rng = np.random.default_rng(5)
