@@ -277,3 +277,35 @@ def test_progress_on_stderr_for_long_builds_and_q_silences_it(tmp_path):
     assert last.startswith("nupatch: 3600 patches from 3600 faces, wrote "), last
     quiet = run("-q")
     assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_subdivide_writes_a_mesh_that_reads_back_with_its_tags(tmp_path, run_cli):
+    import numpy as np
+
+    import patching
+    from patching.subdivision import subdivide
+
+    mesh_path = tmp_path / "ring.obj"
+    mesh_path.write_text(torus_obj(5, 4, extra="t interval 2/1/0 0 4 3\nt crease 2/1/0 0 1 2.5\n"))
+    out = tmp_path / "fine.obj"
+    result = run_cli("subdivide", mesh_path, "-n", "2", "-o", out, "-q")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""  # quiet, and the rules record is a known tag
+    fine = patching.read_mesh(out)
+    expected = subdivide(patching.read_mesh(mesh_path), 2)
+    assert fine.n_faces == 16 * 20
+    np.testing.assert_allclose(fine.vertices, expected.vertices, atol=1e-15)
+    assert sorted(fine.intervals.values()) == sorted(expected.intervals.values())
+    assert max(fine.intervals.values()) == 0.75  # 3 halved twice
+    assert sorted(fine.creases.values()) == sorted(expected.creases.values())
+    assert "t nupatch_rules 0/0/1 seed" in out.read_text()
+
+
+def test_subdivide_refuses_opensubdiv_rules_on_non_uniform_knots(tmp_path, run_cli):
+    mesh_path = tmp_path / "ring.obj"
+    mesh_path.write_text(torus_obj(5, 4, extra="t interval 2/1/0 0 4 3\n"))
+    out = tmp_path / "fine.obj"
+    out.write_text("precious")
+    result = run_cli("subdivide", mesh_path, "-n", "1", "--rules", "opensubdiv", "-o", out)
+    _assert_refused(result, "uniform knot intervals", "interval")
+    assert out.read_text() == "precious"
