@@ -151,6 +151,8 @@ def test_build_info_check_and_version(tmp_path, run_cli):
 
     report = json.loads(check.stdout)
     assert report["valid"] and report["n_solids"] == 1 and report["n_free_edges"] == 0
+    # issue 3: round-off level, read back from the STEP (13 significant digits)
+    assert report["max_gap_relative"] <= 1e-9 and report["max_normal_jump_deg"] <= 1e-6
     info = run_cli("info", mesh)
     assert info.returncode == 0 and "30 vertices, 30 faces" in info.stdout
     assert run_cli("--version").stdout.startswith("nupatch ")
