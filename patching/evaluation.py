@@ -554,9 +554,11 @@ def ep_quality(
     the grids joined into one graph through the patch topology (``sample_graph``), discrete
     maxima found by ``local_maxima`` and each but the highest confirmed by Newton's method on
     its patch polynomial (``_confirmed_maxima``): a count is of true local maxima of the
-    function, not of the grid, down to bumps about one grid step wide.  The count is over the function's whole support, not only the
-    EP's n patches: the edge neighbours sit on the rim of those patches, where half of their
-    neighbourhood would be missing.  eps: the vertices to report (default: the mesh's EPs;
+    function, not of the grid, down to bumps about one grid step wide (samples=33 is safer
+    than 17 at interval ratios near 20).  The count is over the function's whole support, not
+    only the EP's n patches: the edge neighbours sit on the rim of those patches, where half of
+    their neighbourhood would be missing.  Each function's secondary maxima also get their
+    prominence (``prominences``), so a ripple is told from a hill.  eps: the vertices to report (default: the mesh's EPs;
     pass the forced ones of ``build_operator(force_extraordinary=...)`` explicitly).
     """
     topo = topology or Topology(mesh)
@@ -574,7 +576,10 @@ def ep_quality(
             nodes, heights = _confirmed_maxima_nodes(operator, graph, c, values[:, k])
             maxima[c] = int(heights.size)
             second[c] = float(heights[1] / heights[0]) if heights.size > 1 else 0.0
-            prominence[c] = float(prominences(values[:, k], graph, nodes[1:]).max() / heights[0]) if heights.size > 1 else 0.0
+            if heights.size > 1:
+                prominence[c] = float(prominences(values[:, k], graph, nodes[1:]).max() / heights[0])
+            else:
+                prominence[c] = 0.0
         jumps = spoke_normal_jumps(surface, topo, v, samples)
         report.append(
             EPQuality(
