@@ -10,7 +10,7 @@ from typing import Callable, Iterator
 
 from .errors import OutputError
 
-__all__ = ["atomic_path", "atomic_write_text", "check_output_path"]
+__all__ = ["atomic_path", "atomic_write_text", "check_output_path", "umask"]
 
 
 def check_output_path(path: str | os.PathLike) -> Path:
@@ -31,25 +31,52 @@ def check_output_path(path: str | os.PathLike) -> Path:
     return path
 
 
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it into place if the block succeeds.
+def umask() -> int:
+    """The process umask, read without changing it where /proc allows."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
-    On any exception the temporary file is removed and an existing ``path`` is untouched.
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, empty_error: type[Exception] = OutputError) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it onto ``path`` if the block succeeds.
+
+    Only when the block ends without an exception, the file is non-empty and on disk (fsync)
+    is it renamed onto ``path`` (``os.replace``, atomic on POSIX); on any failure the temporary
+    file is removed and a file already at ``path`` is untouched.  The file gets the mode a
+    plain ``open()`` would give it (0666 minus the umask), not mkstemp's private 0600.  A
+    missing or unwritable directory, or a ``path`` that is a directory, raises OutputError
+    naming it; a writer that leaves an empty file raises ``empty_error``.
     """
-    path = check_output_path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise OutputError("the output path is a directory", str(path))
+    if not directory.is_dir():
+        raise OutputError("output directory does not exist", str(directory))
     try:
-        yield tmp_path
-        if not tmp_path.exists() or tmp_path.stat().st_size == 0:
-            raise OutputError("writer produced no output", str(path))
-        os.chmod(tmp_path, 0o644)
-        os.replace(tmp_path, path)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise OutputError(f"cannot write in {directory}: {exc.strerror}", str(path)) from exc
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        os.chmod(tmp, 0o666 & ~umask())
+        yield tmp
+        with open(tmp, "rb") as written:
+            if os.fstat(written.fileno()).st_size == 0:
+                raise empty_error(f"the writer left an empty file for {path}")
+            os.fsync(written.fileno())  # the data is on disk before the name points at it
+        os.replace(tmp, path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+        with contextlib.suppress(OSError):
+            tmp.unlink()
         raise
 
 
