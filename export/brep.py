@@ -48,7 +48,7 @@ from OCP.TopoDS import (
 
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-__all__ = ["BrepError", "to_shape", "shape_tolerance"]
+__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble"]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
 RELATIVE_TOLERANCE = 1e-7
@@ -210,31 +210,37 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
         builder.Add(f, w)
         faces.append(f)
 
-    # Every curve representation is parametrised on [0, 1] by construction.
+    shape = assemble(builder, edges, faces, topo.is_closed, lambda solid: _volume(solid) < 0.0)
+    if check:
+        _require_valid(shape, faces, patches)
+    return shape
+
+
+def assemble(builder: BRep_Builder, edges, faces, closed: bool, inside_out) -> TopoDS_Shape:
+    """Finish shared-topology faces: edge ranges, then a shell, and for a closed topology a
+    solid, turned around when ``inside_out(solid)`` says its volume is negative.
+
+    Every curve representation is parametrised on [0, 1] by construction (SameRange,
+    SameParameter hold exactly)."""
     for e in edges:
         builder.Range(e, 0.0, 1.0)
         builder.SameRange(e, True)
         builder.SameParameter(e, True)
-
     shell = TopoDS_Shell()
     builder.MakeShell(shell)
     for f in faces:
         builder.Add(shell, f)
-    shape: TopoDS_Shape = shell
-    if topo.is_closed:
-        shell.Closed(True)
+    if not closed:
+        return shell
+    shell.Closed(True)
+    solid = TopoDS_Solid()
+    builder.MakeSolid(solid)
+    builder.Add(solid, shell)
+    if inside_out(solid):
         solid = TopoDS_Solid()
         builder.MakeSolid(solid)
-        builder.Add(solid, shell)
-        if _volume(solid) < 0.0:
-            solid = TopoDS_Solid()
-            builder.MakeSolid(solid)
-            builder.Add(solid, shell.Reversed())
-        shape = solid
-
-    if check:
-        _require_valid(shape, faces, patches)
-    return shape
+        builder.Add(solid, shell.Reversed())
+    return solid
 
 
 def _volume(shape: TopoDS_Shape) -> float:

@@ -41,12 +41,12 @@ from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TColgp import TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
-from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Shell, TopoDS_Solid, TopoDS_Vertex, TopoDS_Wire
+from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex, TopoDS_Wire
 
 from patching.evaluation import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, shape_tolerance
+from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, shape_tolerance
 
 __all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
@@ -323,25 +323,8 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
         builder.Add(f, wire)
         faces.append(f)
 
-    for e in edges.values():
-        builder.Range(e, 0.0, 1.0)
-        builder.SameRange(e, True)
-        builder.SameParameter(e, True)
-    shell = TopoDS_Shell()
-    builder.MakeShell(shell)
-    for f in faces:
-        builder.Add(shell, f)
-    shape: TopoDS_Shape = shell
-    if topo.is_closed:
-        shell.Closed(True)
-        solid = TopoDS_Solid()
-        builder.MakeSolid(solid)
-        builder.Add(solid, shell)
-        if _signed_volume(surface) < 0.0:  # as to_shape's test, without OCC's slow integration of multi-span faces
-            solid = TopoDS_Solid()
-            builder.MakeSolid(solid)
-            builder.Add(solid, shell.Reversed())
-        shape = solid
+    # orientation as to_shape's test, without OCC's slow integration of multi-span faces
+    shape = assemble(builder, edges.values(), faces, topo.is_closed, lambda solid: _signed_volume(surface) < 0.0)
     if check:
         from OCP.BRepCheck import BRepCheck_Analyzer
 

@@ -47,7 +47,6 @@ vertex this is the tensor-product vertex point; at an EP it is eq. (3) on the an
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -92,7 +91,6 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     """(rows, cols, weights) of FP[h] for every half-edge h of every quad face."""
     offsets = topo.mesh.face_offsets
     base = offsets[:-1]
-    f = base.size
     h = base[:, None] + np.arange(4)[None, :]  # (f, 4) half-edges h_k
     iv = topo.halfedge_interval
     corner = topo.origin[h]  # (f, 4) vertex ids

@@ -46,7 +46,6 @@ class Topology:
 
     # -- edges and twins ------------------------------------------------------------------
     def _build_edges(self) -> None:
-        mesh = self.mesh
         lo = np.minimum(self.origin, self.dest)
         hi = np.maximum(self.origin, self.dest)
         key = lo * self.n_vertices + hi
