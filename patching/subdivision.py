@@ -522,7 +522,6 @@ def _tagged_rows(ctx: _Context, angles: str, claims: dict) -> None:
         ring = ctx.topo.one_ring(v)
         boundary = bool(ctx.v_boundary[v])
         f = ring.size
-        spoke_he = list(ring)
         spoke_edges = list(ctx.eoh[ring])
         ends = list(ctx.dest[ring])
         if boundary:

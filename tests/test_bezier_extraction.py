@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from patching.bezier_extraction import FACE_POINT_POSITION, cubic_extraction
 from patching.primitives import open_grid, torus_grid

@@ -2,7 +2,6 @@
 reversal, mirroring, and symmetry, on closed meshes with EPs of valence 3 to 6."""
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

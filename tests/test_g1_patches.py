@@ -3,8 +3,6 @@ numpy evaluation independent of the constraint code, and through OpenCASCADE."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import patching
 from patching.bernstein import elevation_matrix
@@ -167,7 +165,7 @@ def test_printed_last_row_of_eq_9_has_a_sign_error():
     rng = np.random.default_rng(0)
     dm, d, dp = 1.0, 2.0, 3.0
     r = rng.normal(size=6)
-    da, db = rng.normal(size=6), rng.normal(size=6)
+    da = rng.normal(size=6)
     # C1 across the spoke: d_{i-1}(A - r) = -d_{i+1}(B - r)  (widths d_{i+1}, d_{i-1})
     a = r + da
     bb = r - dm / dp * da
@@ -254,7 +252,6 @@ def test_eigen_polyhedron_anchors_fix_the_limit_point_and_normal():
     """Seed 002 section 3.5 step 4: the surface at the EP is [19]'s limit point, and its normal
     is [19]'s (tangent_weights of the eigen-polyhedron rule applied to the first ring)."""
     from patching.auxiliary_points import _anchor_weights
-    from patching.eigen_polyhedron import limit_point_weights, tangent_weights
 
     mesh = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, 9)
     rng = np.random.default_rng(0)
