@@ -17,13 +17,22 @@ from .errors import (
 from .mesh import ControlMesh, NupatchWarning, from_arrays
 from .obj import read_obj as read_mesh
 from .obj import write_obj
-from .operator import SurfaceOperator, build, build_operator
+from .operator import ANCHOR_RULES, SurfaceOperator, build, build_operator
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
+
+
+def ep_quality(operator, mesh, **kwargs):
+    """Per-EP quality report (``evaluation.ep_quality``): normal jumps across spoke edges and
+    the local maxima of the blending functions around each EP."""
+    from .evaluation import ep_quality as _ep_quality
+
+    return _ep_quality(operator, mesh, **kwargs)
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "ANCHOR_RULES",
     "BezierSurface",
     "ControlMesh",
     "InputFileError",
@@ -40,6 +49,7 @@ __all__ = [
     "UnsupportedError",
     "build",
     "build_operator",
+    "ep_quality",
     "from_arrays",
     "read_mesh",
     "write_obj",
