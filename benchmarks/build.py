@@ -6,7 +6,9 @@ topology, and written to STEP, in the same run.
 Meshes: a 100 x 100 torus grid (10k regular faces, intervals 1 to 20); an icosahedron refined
 five times (15k faces, few EPs); and a "coarse" mesh, an icosphere's triangles split into quads
 once (15k faces, half of the vertices EPs of valence 3, 5 and 6).  EP meshes get intervals
-drawn from {1, 2, 5} per strip.  Run by hand: ``.venv/bin/python benchmarks/build.py [torus|refined|coarse ...]``.
+drawn from {1, 2, 5} per strip.  ``pack`` compares packed multi-span faces with one face a
+patch (face counts, STEP size, times; ``benchmarks/pack.py``).  Run by hand:
+``.venv/bin/python benchmarks/build.py [torus|refined|coarse|pack ...]``.
 """
 
 from __future__ import annotations
@@ -134,9 +136,21 @@ def run(kind: str) -> None:
     print(f"  ratio end-to-end / floor         {t_cli / floor:8.2f}  (target <= 1.5)")
 
 
+def run_pack() -> None:
+    """Packed multi-span faces against one face a patch (issue 5): ``benchmarks/pack.py``'s
+    two models, the 10k-face torus and an L polycube with EPs."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import pack
+
+    rng = np.random.default_rng(0)
+    du, dv = rng.integers(1, 21, 100).astype(float), rng.integers(1, 21, 100).astype(float)
+    pack.measure("torus 100 x 100", torus_grid(100, 100, du, dv, name="torus"))
+    pack.measure("L polycube, 16 x 16 per cube face", pack.ell(16))
+
+
 def main() -> None:
-    for kind in sys.argv[1:] or ["torus", "refined", "coarse"]:
-        run(kind)
+    for kind in sys.argv[1:] or ["torus", "refined", "coarse", "pack"]:
+        run_pack() if kind == "pack" else run(kind)
 
 
 if __name__ == "__main__":
