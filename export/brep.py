@@ -46,6 +46,7 @@ from OCP.TopoDS import (
     TopoDS_Wire,
 )
 
+from patching.errors import MeshError
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble"]
@@ -148,6 +149,8 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     patches = _check_input(surface)
     topo = surface.topology
     tol = shape_tolerance(surface)
+    if check:
+        _refuse_degenerate_sides(surface, patches, tol)
     builder = BRep_Builder()
     corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
     side_edge = np.asarray(topo.side_edge, dtype=np.int64)
@@ -210,10 +213,31 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
         builder.Add(f, w)
         faces.append(f)
 
-    shape = assemble(builder, edges, faces, topo.is_closed, lambda solid: _volume(solid) < 0.0)
+    volumes: list[float] = []
+    shape = assemble(builder, edges, faces, topo.is_closed, lambda solid: volumes.append(_volume(solid)) or volumes[0] < 0.0)
     if check:
+        if volumes and abs(volumes[0]) <= tol * max(surface.size, tol) ** 2:
+            raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
         _require_valid(shape, faces, patches)
     return shape
+
+
+def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> None:
+    """A patch side whose boundary curve has no length (all its poles within the tolerance)
+    is degenerate geometry from the control points: refused naming the mesh face (exit 2)."""
+    for group in surface.groups:
+        nets = np.asarray(group.coefficients)
+        sides = (nets[:, :, 0], nets[:, -1, :], nets[:, :, -1], nets[:, 0, :])  # (k, d+1, 3) each
+        extent = np.stack([np.abs(c - c[:, :1]).max(axis=(1, 2)) for c in sides], axis=1)  # (k, 4)
+        bad = np.argwhere(extent <= tol)
+        if bad.size:
+            k, side = (int(x) for x in bad[0])
+            face = int(group.faces[k])
+            raise MeshError(
+                f"degenerate geometry: side {side} of the patch on face {face} has no length "
+                "(its control points coincide)",
+                f"face {face}",
+            )
 
 
 def assemble(builder: BRep_Builder, edges, faces, closed: bool, inside_out) -> TopoDS_Shape:

@@ -311,3 +311,20 @@ def test_subdivide_refuses_opensubdiv_rules_on_non_uniform_knots(tmp_path, run_c
     result = run_cli("subdivide", mesh_path, "-n", "1", "--rules", "opensubdiv", "-o", out)
     _assert_refused(result, "uniform knot intervals", "interval")
     assert out.read_text() == "precious"
+
+
+@pytest.mark.parametrize(
+    "name, positions, message",
+    [
+        ("point", ["0 0 0"] * 8, "side 0 of the patch on face 0 has no length"),
+        ("flat", [f"{x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2, "encloses no volume"),
+    ],
+)
+def test_degenerate_geometry_is_refused_in_one_line(tmp_path, run_cli, name, positions, message):
+    """A cube whose control points collapse to a point or a plane: a valid mesh, but no solid."""
+    mesh = tmp_path / f"{name}.obj"
+    faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
+    mesh.write_text("\n".join([f"v {p}" for p in positions] + faces) + "\n")
+    out = tmp_path / "out.step"
+    _assert_refused(run_cli("build", mesh, "-o", out), message)
+    assert not out.exists()
