@@ -73,3 +73,63 @@ def test_random_small_meshes_build_or_raise_the_error_family(data):
             return
     assert np.allclose(op.row_sums, 1.0, atol=1e-9)
     assert all(math.isfinite(x) for x in op.matrix.data)
+
+
+def _bases():
+    from patching.primitives import polycube, torus_grid
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    pyramid = patching.from_arrays(
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0]]),
+        [[0, 3, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]],
+        name="pyramid",
+    )
+    return [quad_mesh_with_eps("cube"), polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1), quad_mesh_with_eps("bipyramid-5"), torus_grid(5, 4), pyramid]
+
+
+BASES = None
+
+
+@st.composite
+def mutated_meshes(draw):
+    global BASES
+    if BASES is None:
+        BASES = _bases()
+    base = BASES[draw(st.integers(0, len(BASES) - 1))]
+    faces = [list(base.face(f)) for f in range(base.n_faces)]
+    vertices = base.vertices.copy()
+    topo = patching.Topology(base)
+    intervals = {}
+    for _ in range(draw(st.integers(0, 4))):
+        e = draw(st.integers(0, topo.n_edges - 1))
+        a, b = (int(x) for x in topo.edges[e])
+        intervals[(a, b)] = draw(st.sampled_from([0.0, 1e-6, 0.3, 1.0, 4.0, 1e6]))
+    kind = draw(st.sampled_from(["none", "jitter", "collapse", "drop", "scale"]))
+    if kind == "jitter":
+        vertices = vertices + np.random.default_rng(draw(st.integers(0, 99))).normal(scale=draw(st.sampled_from([1e-9, 0.1, 10.0])), size=vertices.shape)
+    elif kind == "collapse":
+        i, j = draw(st.integers(0, len(vertices) - 1)), draw(st.integers(0, len(vertices) - 1))
+        vertices[i] = vertices[j]
+    elif kind == "drop" and len(faces) > 1:
+        faces.pop(draw(st.integers(0, len(faces) - 1)))
+    elif kind == "scale":
+        vertices = vertices * draw(st.sampled_from([1e-12, 1e12]))
+    return vertices, faces, intervals
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+@given(mutated_meshes())
+def test_mutated_meshes_export_or_raise_the_error_family(data):
+    from export import to_shape
+
+    vertices, faces, intervals = data
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            mesh = patching.from_arrays(vertices, faces, intervals=intervals, name="fuzz")
+            surface = patching.build(mesh)
+            shape = to_shape(surface)
+        except NupatchError as exc:
+            assert str(exc) and "\n" not in str(exc)
+            return
+    assert not shape.IsNull()
