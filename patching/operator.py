@@ -10,19 +10,19 @@ product.  Rows come in groups of one degree; inside a group, patch k of bi-degre
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
 from functools import cached_property
+from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import UnsupportedError
-from .mesh import ControlMesh
 from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction
+from .errors import UnsupportedError
 from .g1_patches import G1Assembly, RowMixer, ep_groups
+from .mesh import ControlMesh
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
@@ -110,6 +110,12 @@ def build_operator(
 
     angles: the angle configuration at EPs, "optimized" (seed 002 section 3.3, default),
     "default" (the heuristic angles) or "uniform" (2 pi / n, the baseline of [32]).
+    anchors: placement of the auxiliary control points, "eigen-polyhedron" (section 3.5,
+    default), "extraction" (``auxiliary_points``) or "faired" (``anchor_fairing``).
+    force_extraordinary: interior valence-4 vertices to treat as EPs anyway (a check: with
+    uniform intervals and anchors="extraction" the EP path reproduces the bicubic B-spline);
+    ignored for meshes with non-quad faces, whose vertices are renumbered by the refinement.
+    topology: the mesh's Topology if already built.
     """
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
@@ -162,9 +168,9 @@ def build_operator(
         # Compose the row mixings first (few entries per row), then apply them once to the
         # extraction rows, whose rows are long: far cheaper than four passes over long rows.
         mixing = elevate
-        for step in (g1.red, g1.black, g1.green, g1.blue):
+        for solve in (g1.red, g1.black, g1.green, g1.blue):
             mixer = RowMixer(mixing.shape[0])
-            step(mixer)
+            solve(mixer)
             mixing = mixer.matrix() @ mixing
         rows = mixing @ extraction.nets[src]
         keep = (face_row[quintic_faces][:, None] + np.arange(36)).ravel()
@@ -174,14 +180,13 @@ def build_operator(
         anchor_rows = anchor_matrix(topo, groups_ep, extraction.anchor_column, n, rule=rule)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
-    stacked = sp.vstack(blocks).tocsr()
+    stacked = sp.vstack(blocks).tocsr()  # rows over [control points | anchors]
     if anchors == "faired" and n_anchor:
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
         sets = [extraction.anchor_column[g.h[e]] - n for g in groups_ep for e in range(len(g.vertices))]
         anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
-    anchors = anchor_rows
-    matrix = (stacked[:, :n] + stacked[:, n:] @ anchors).tocsr()
+    matrix = (stacked[:, :n] + stacked[:, n:] @ anchor_rows).tocsr()
     matrix.eliminate_zeros()
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
