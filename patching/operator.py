@@ -120,6 +120,21 @@ def build_operator(
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     topo = topology or Topology(mesh)
+    steps = _semi_sharp_steps(topo)
+    if steps:
+        # Semi-sharp creases and corners (0 < s < 10): the sharp subdivision rules for ceil(s)
+        # steps (issue 4; done globally for now: the cost of the pre-subdivided mesh), after
+        # which every sharpness is 0; M of the refined mesh times the steps' S acts on the
+        # original control points.
+        from .subdivision import subdivision_operator
+
+        composed = sp.identity(mesh.n_vertices, format="csr")
+        refined = mesh
+        for _ in range(steps):
+            step, refined = subdivision_operator(refined, rules="seed")
+            composed = (step @ composed).tocsr()
+        inner = build_operator(refined, angles=angles, anchors=anchors)
+        return SurfaceOperator((inner.matrix @ composed).tocsr(), inner.groups, inner.topology, mesh.name)
     if not mesh.is_quad_mesh:
         # Seed 002 patches quads only: one subdivision step turns every polygon into quads
         # (issue 4, done globally for now), and M of the refined mesh composed with the step's
@@ -191,6 +206,32 @@ def build_operator(
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
     return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
+
+
+#: Most subdivision steps (and faces after them) spent on semi-sharp features before patching.
+MAX_SEMI_SHARP_STEPS = 6
+MAX_REFINED_FACES = 2_000_000
+
+
+def _semi_sharp_steps(topo: Topology) -> int:
+    """ceil of the largest finite sharpness below 10 on edges and corners (0 if none); refuses
+    what would need more than MAX_SEMI_SHARP_STEPS steps or MAX_REFINED_FACES faces."""
+    mesh = topo.mesh
+    values = np.concatenate([topo.edge_sharpness, np.array(list(mesh.corners.values()), dtype=np.float64)])
+    semi = values[(values > 0) & (values < 10)]
+    if semi.size == 0:
+        return 0
+    steps = int(np.ceil(semi.max()))
+    faces = mesh.n_faces * 4**steps  # a first step makes n-gons into n quads: about the same
+    if steps > MAX_SEMI_SHARP_STEPS or faces > MAX_REFINED_FACES:
+        e = int(np.argmax(np.where(topo.edge_sharpness < 10, topo.edge_sharpness, 0)))
+        a, b = (int(x) for x in topo.edges[e])
+        raise UnsupportedError(
+            f"sharpness {semi.max():g} needs {steps} subdivision steps ({faces} faces) before patching; "
+            f"at most {MAX_SEMI_SHARP_STEPS} steps and {MAX_REFINED_FACES} faces are done",
+            mesh.where("crease", (a, b)),
+        )
+    return steps
 
 
 def _refuse_boundary_patches(topo: Topology, faces: np.ndarray) -> None:

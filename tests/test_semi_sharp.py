@@ -1,0 +1,51 @@
+"""Semi-sharp creases (issue 4): ceil(s) steps of the sharp subdivision rules, then patches."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import patching
+from patching.evaluation import sample_surface
+from tests.test_g1_patches import shared_edge_normal_jumps
+
+CUBE_V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+CUBE_F = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+CUBE_EDGES = sorted({tuple(sorted((q[i], q[(i + 1) % 4]))) for q in CUBE_F for i in range(4)})
+
+
+def creased_cube(s: float, intervals=None) -> patching.ControlMesh:
+    return patching.from_arrays(CUBE_V, CUBE_F, creases={e: s for e in CUBE_EDGES}, intervals=intervals, name="cube")
+
+
+def distance_to_cube_edge(surface) -> float:
+    """Distance from the middle of a cube edge to the surface (dense samples)."""
+    _, points, _ = sample_surface(surface, 33)
+    return float(cKDTree(points.reshape(-1, 3)).query([[0.5, 0.0, 0.0]])[0][0])
+
+
+def test_sharper_creases_come_closer_to_the_cube_and_fractions_lie_between():
+    d = {s: distance_to_cube_edge(patching.build(creased_cube(s))) for s in (0.0, 1.0, 1.5, 2.0, 2.5, 3.0)}
+    assert d[0.0] > d[1.0] > d[2.0] > d[3.0] > 0
+    assert d[1.0] > d[1.5] > d[2.0] and d[2.0] > d[2.5] > d[3.0]
+
+
+@pytest.mark.parametrize("s", [1.0, 2.5])
+def test_semi_sharp_cube_is_a_g1_solid_acting_on_the_original_points(s):
+    mesh = creased_cube(s, intervals={(0, 1): 2.0})
+    op = patching.build_operator(mesh)
+    assert op.matrix.shape[1] == 8
+    np.testing.assert_allclose(op.row_sums, 1.0, atol=1e-12)
+    surface = op.evaluate(mesh.vertices)
+    assert surface.topology.is_closed
+    angle, gap = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-7 and gap <= 1e-12 * surface.size
+
+
+def test_infinitely_sharp_creases_are_still_refused():
+    with pytest.raises(patching.UnsupportedError, match="crease"):
+        patching.build_operator(creased_cube(10.0))
+
+
+def test_too_many_steps_are_refused_naming_the_crease():
+    with pytest.raises(patching.UnsupportedError, match="subdivision steps"):
+        patching.build_operator(creased_cube(9.5))
