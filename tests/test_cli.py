@@ -16,7 +16,14 @@ f 2 5 6 3
 
 
 def torus_obj(m: int = 4, n: int = 4, extra: str = "") -> str:
-    lines = [f"v {a} {b} 0" for a in range(m) for b in range(n)]
+    """A closed m x n torus grid as OBJ text (vertex (a, b) on line a n + b + 1)."""
+    import math
+
+    def point(a: int, b: int) -> str:
+        u, w = 2 * math.pi * a / m, 2 * math.pi * b / n
+        return f"{(3 + math.cos(w)) * math.cos(u):.12g} {(3 + math.cos(w)) * math.sin(u):.12g} {math.sin(w):.12g}"
+
+    lines = [f"v {point(a, b)}" for a in range(m) for b in range(n)]
     idx = lambda a, b: (a % m) * n + (b % n) + 1  # noqa: E731
     lines += [f"f {idx(a, b)} {idx(a + 1, b)} {idx(a + 1, b + 1)} {idx(a, b + 1)}" for a in range(m) for b in range(n)]
     return "\n".join(lines) + "\n" + extra
