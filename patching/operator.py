@@ -20,7 +20,7 @@ from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction
-from .errors import UnsupportedError
+from .errors import KnotError, UnsupportedError
 from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
 from .patch_topology import patch_topology
@@ -147,6 +147,7 @@ def build_operator(
         return SurfaceOperator((inner.matrix @ step).tocsr(), inner.groups, inner.topology, mesh.name)
     _refuse_unsupported(topo)
     spans = face_spans(topo)
+    _refuse_torn_knots(topo, spans)
     faces = np.flatnonzero(np.all(spans > 0, axis=1))
     _refuse_boundary_patches(topo, faces)
     eps = np.union1d(topo.extraordinary, np.asarray(force_extraordinary, dtype=np.int64))
@@ -232,6 +233,30 @@ def _semi_sharp_steps(topo: Topology) -> int:
             mesh.where("crease", (a, b)),
         )
     return steps
+
+
+def _refuse_torn_knots(topo: Topology, spans: np.ndarray) -> None:
+    """Three zero intervals in a row inside the mesh make an interior knot of multiplicity 4:
+    a cubic B-spline is discontinuous there, so no closed surface exists (KnotError)."""
+    mesh = topo.mesh
+    base = mesh.face_offsets[:-1]
+    iv = topo.halfedge_interval
+    for direction, (side_a, side_b) in enumerate(((1, 3), (0, 2))):
+        zero = spans[:, direction] == 0
+        ta, tb = topo.twin[base + side_a], topo.twin[base + side_b]
+        inside = (ta >= 0) & (tb >= 0)
+        width_a = np.where(ta >= 0, iv[topo.next[np.maximum(ta, 0)]], 1.0)
+        width_b = np.where(tb >= 0, iv[topo.next[np.maximum(tb, 0)]], 1.0)
+        torn = np.flatnonzero(zero & inside & (width_a == 0) & (width_b == 0))
+        if torn.size:
+            f = int(torn[0])
+            h = int(base[f] + (0 if direction == 0 else 1))
+            a, b = int(topo.origin[h]), int(topo.dest[h])
+            raise KnotError(
+                f"three zero knot intervals in a row around face {f} (edge {a}-{b}): an interior "
+                "knot of multiplicity 4 tears the surface",
+                mesh.where("interval", (min(a, b), max(a, b))),
+            )
 
 
 def _refuse_boundary_patches(topo: Topology, faces: np.ndarray) -> None:

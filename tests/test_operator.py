@@ -112,3 +112,13 @@ def test_import_patching_loads_no_opencascade():
     code = "import sys, patching, patching.operator; print(sorted(m for m in sys.modules if m.split('.')[0] in ('OCP', 'OCC', 'cadquery', 'build123d')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_three_zero_intervals_in_a_row_are_refused():
+    """Found by tests/test_fuzz_input.py: an interior knot of multiplicity 4 tears the surface,
+    which left OpenCASCADE an invalid B-rep; now a one-line KnotError."""
+    from patching import KnotError
+
+    with pytest.raises(KnotError, match="three zero knot intervals in a row"):
+        build_operator(torus_grid(5, 4, [0, 0, 1, 1, 0], None))
+    build_operator(torus_grid(5, 4, [0, 0, 1, 1, 1], None))  # multiplicity 3 (C0) is fine
