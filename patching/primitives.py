@@ -28,15 +28,21 @@ def torus_grid(
     w = 2 * np.pi * b / n
     ring = major_radius + minor_radius * np.cos(w)
     vertices = np.stack([ring * np.cos(u), ring * np.sin(u), minor_radius * np.sin(w)], -1).reshape(-1, 3)
-    idx = lambda i, j: (i % m) * n + (j % n)  # noqa: E731
-    aa, bb = a.ravel(), b.ravel()
+    faces, intervals = _grid(m, n, m, n, lambda i, j: (i % m) * n + (j % n), u_intervals, v_intervals)
+    return from_arrays(vertices, faces, intervals=intervals, name=name)
+
+
+def _grid(m, n, cols, rows, idx, u_intervals, v_intervals):
+    """Quads (a, b), (a+1, b), (a+1, b+1), (a, b+1) for a < cols, b < rows, and the interval
+    tags of the strips (one edge each: (i, 0)-(i+1, 0) in u, (0, j)-(0, j+1) in v)."""
+    aa, bb = (x.ravel() for x in np.meshgrid(np.arange(cols), np.arange(rows), indexing="ij"))
     faces = np.stack([idx(aa, bb), idx(aa + 1, bb), idx(aa + 1, bb + 1), idx(aa, bb + 1)], axis=1)
     intervals = {}
     if u_intervals is not None:
-        intervals.update({(idx(i, 0), idx(i + 1, 0)): float(d) for i, d in enumerate(u_intervals)})
+        intervals.update({(int(idx(i, 0)), int(idx(i + 1, 0))): float(d) for i, d in enumerate(u_intervals)})
     if v_intervals is not None:
-        intervals.update({(idx(0, j), idx(0, j + 1)): float(d) for j, d in enumerate(v_intervals)})
-    return from_arrays(vertices, faces, intervals=intervals, name=name)
+        intervals.update({(int(idx(0, j)), int(idx(0, j + 1))): float(d) for j, d in enumerate(v_intervals)})
+    return faces, intervals
 
 
 def open_grid(
@@ -54,15 +60,7 @@ def open_grid(
     a, b = np.meshgrid(np.arange(m, dtype=float), np.arange(n, dtype=float), indexing="ij")
     z = height * np.sin(np.pi * a / (m - 1)) * np.sin(np.pi * b / (n - 1))
     vertices = np.stack([a, b, z], -1).reshape(-1, 3)
-    idx = lambda i, j: i * n + j  # noqa: E731
-    aa, bb = np.meshgrid(np.arange(m - 1), np.arange(n - 1), indexing="ij")
-    aa, bb = aa.ravel(), bb.ravel()
-    faces = np.stack([idx(aa, bb), idx(aa + 1, bb), idx(aa + 1, bb + 1), idx(aa, bb + 1)], axis=1)
-    intervals = {}
-    if u_intervals is not None:
-        intervals.update({(idx(i, 0), idx(i + 1, 0)): float(d) for i, d in enumerate(u_intervals)})
-    if v_intervals is not None:
-        intervals.update({(idx(0, j), idx(0, j + 1)): float(d) for j, d in enumerate(v_intervals)})
+    faces, intervals = _grid(m, n, m - 1, n - 1, lambda i, j: i * n + j, u_intervals, v_intervals)
     return from_arrays(vertices, faces, intervals=intervals, name=name)
 
 
