@@ -87,7 +87,7 @@ class CubicExtraction:
     n_anchors: int
 
 
-def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.ndarray):
+def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.ndarray, sharp_edge: np.ndarray):
     """(rows, cols, weights) of FP[h] for every half-edge h of every quad face."""
     offsets = topo.mesh.face_offsets
     base = offsets[:-1]
@@ -97,7 +97,13 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     ep = is_ep[corner]  # (f, 4)
     I = iv[h]  # interval along side k
     twin = topo.twin[h]
-    W = np.where(twin >= 0, iv[topo.next[np.maximum(twin, 0)]], 0.0)  # width across side k (phantom 0)
+    # Width of the neighbour across side k: 0 beyond an open boundary (the phantom leg of a
+    # clamped end); across an infinitely sharp edge the face's own width (the mirrored
+    # neighbour of a crease: phantom row P_-1 = 2 P_0 - P_1, the limit of the crease rules).
+    W = np.where(twin >= 0, iv[topo.next[np.maximum(twin, 0)]], 0.0)
+    across_sharp = sharp_edge[topo.edge_of[h]]
+    own = np.roll(I, -1, axis=1)  # the face's width across side k is the interval of side k+1
+    W = np.where(across_sharp, own, W)
 
     def col(k):  # (f,) column of plain corner k
         return corner[:, k % 4]
@@ -167,10 +173,16 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
 
-def cubic_extraction(topo: Topology, is_ep: np.ndarray | None = None) -> CubicExtraction:
+def cubic_extraction(
+    topo: Topology, is_ep: np.ndarray | None = None, sharp_edge: np.ndarray | None = None
+) -> CubicExtraction:
     """C0 bicubic extraction of every quad face of an all-quad mesh (module docstring).
 
     is_ep: (n,) bool, the vertices replaced by anchors (default: the topology's EPs).
+    sharp_edge: (e,) bool, infinitely sharp edges (default none), running straight through
+    regular interior vertices.  Across them the faces read a mirrored neighbour; their edge
+    and vertex points are those of the crease polygon's own cubic B-spline (its strip
+    intervals), so both sides end exactly on the crease curve, C0.
     Faces need their four sides interior for edge points and their corners interior for
     vertex points; rows of other faces are left incomplete and must not be used.
     """
@@ -185,12 +197,15 @@ def cubic_extraction(topo: Topology, is_ep: np.ndarray | None = None) -> CubicEx
     anchor_column[ep_corner] = n + np.arange(n_anchors)
     columns = n + n_anchors
 
-    r, c, w = _face_point_triplets(topo, is_ep, anchor_column)
+    if sharp_edge is None:
+        sharp_edge = np.zeros(topo.n_edges, dtype=bool)
+    r, c, w = _face_point_triplets(topo, is_ep, anchor_column, sharp_edge)
     fp = sp.csr_matrix((w, (r, c)), shape=(n_he, columns))
 
     iv = topo.halfedge_interval
     twin = topo.twin
-    inner = np.flatnonzero(twin >= 0)
+    sharp_he = sharp_edge[topo.edge_of]
+    inner = np.flatnonzero((twin >= 0) & ~sharp_he)
     other = topo.next[twin[inner]]  # the neighbour's corner at origin(h)
     w_f = iv[topo.next[inner]]  # width of face(h) across edge(h)
     w_g = iv[other]  # width of the neighbour across edge(h)
@@ -199,6 +214,17 @@ def cubic_extraction(topo: Topology, is_ep: np.ndarray | None = None) -> CubicEx
         (np.concatenate([share, 1 - share]), (np.concatenate([inner, inner]), np.concatenate([inner, other]))),
         shape=(n_he, n_he),
     )
+    # Crease edge points: the leg points of the crease polygon (1D double knot insertion with
+    # the intervals of the crease before origin(h), of h, and after dest(h)).
+    hs = np.flatnonzero(sharp_he)
+    prev_leg = topo.prev[topo.twin[topo.prev[hs]]]  # the crease edge before origin(h)
+    next_leg = topo.next[topo.twin[topo.next[hs]]]  # the crease edge after dest(h)
+    a = _safe_ratio(iv[prev_leg], iv[prev_leg] + iv[hs] + iv[next_leg])
+    crease_edge = sp.csr_matrix(
+        (np.concatenate([1 - a, a]), (np.concatenate([hs, hs]), np.concatenate([topo.origin[hs], topo.dest[hs]]))),
+        shape=(n_he, columns),
+    )
+    edge_rows = (edge_w @ fp + crease_edge).tocsr()
     # Vertex points: w_h = d(spoke before) * d(spoke after next), spokes in rotation order.
     before = np.where(twin >= 0, topo.next[np.maximum(twin, 0)], -1)  # spoke i-1 of corner h
     after = topo.twin[topo.prev]  # spoke i+1
@@ -211,10 +237,19 @@ def cubic_extraction(topo: Topology, is_ep: np.ndarray | None = None) -> CubicEx
     vw = _safe_ratio(weight, total[topo.origin[hv]], fallback=0.0)
     degenerate = total[topo.origin[hv]] <= 0
     vw[degenerate] = 1.0 / count[topo.origin[hv]][degenerate]
-    vertex_w = sp.csr_matrix((vw, (topo.origin[hv], hv)), shape=(n, n_he))
+    on_crease = np.zeros(n, dtype=bool)
+    on_crease[topo.origin[hs]] = True
+    keep = ~on_crease[topo.origin[hv]]
+    vertex_w = sp.csr_matrix((vw[keep], (topo.origin[hv][keep], hv[keep])), shape=(n, n_he))
+    # At a crease vertex: the crease B-spline's vertex point from its two leg points near it,
+    # each weighted by the other leg's interval.
+    out = hs[on_crease[topo.origin[hs]]]
+    crease_total = np.bincount(topo.origin[out], weights=iv[out], minlength=n)
+    cw = _safe_ratio(crease_total[topo.origin[out]] - iv[out], crease_total[topo.origin[out]])
+    crease_vertex = sp.csr_matrix((cw, (topo.origin[out], out)), shape=(n, n_he))
 
     # Stack [FP; EP; V] and select the 16 rows of every face.
-    stack = sp.vstack([fp, edge_w @ fp, vertex_w @ fp]).tocsr()
+    stack = sp.vstack([fp, edge_rows, vertex_w @ fp + crease_vertex @ edge_rows]).tocsr()
     base = topo.mesh.face_offsets[:-1]
     f = base.size
     sel = np.zeros((f, 4, 4), dtype=np.int64)

@@ -22,7 +22,7 @@ from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction
 from .errors import KnotError, UnsupportedError
 from .g1_patches import G1Assembly, RowMixer, ep_groups
-from .mesh import ControlMesh
+from .mesh import INFINITELY_SHARP, ControlMesh
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
@@ -77,24 +77,58 @@ class SurfaceOperator:
 
 
 def _refuse_unsupported(topo: Topology) -> None:
-    """Refuse, with the place named, what later issues will build: never a wrong surface."""
+    """Refuse, with the place named, what later issues will build: never a wrong surface.
+
+    Infinitely sharp creases are built where they run straight through regular vertices (two
+    opposite sharp edges at an interior valence-4 vertex) and no face around an EP touches
+    them; darts, corners, turning creases, creases at or next to EPs and holes are refused."""
     mesh = topo.mesh
-    sharp = np.flatnonzero(topo.edge_sharpness > 0)
-    if sharp.size:
-        a, b = (int(x) for x in topo.edges[sharp[0]])
-        raise UnsupportedError(
-            f"crease on edge {a}-{b}: sharp and semi-sharp creases are not supported yet",
-            mesh.where("crease", (a, b)),
-        )
+    sharp = topo.edge_sharpness >= INFINITELY_SHARP
+    if sharp.any():
+        _refuse_unsupported_creases(topo, sharp)
     corners = [v for v, s in mesh.corners.items() if s > 0]
     if corners:
         raise UnsupportedError(
-            f"corner tag on vertex {corners[0]}: corners are not supported yet",
+            f"corner tag on vertex {corners[0]}: infinitely sharp corners are not supported yet",
             mesh.where("corner", corners[0]),
         )
     if mesh.holes:
         f = min(mesh.holes)
         raise UnsupportedError(f"hole tag on face {f}: holes are not supported yet", mesh.where("hole", f))
+
+
+def _refuse_unsupported_creases(topo: Topology, sharp: np.ndarray) -> None:
+    mesh = topo.mesh
+    count = np.bincount(topo.edges[sharp].ravel(), minlength=topo.n_vertices)
+
+    def refuse(v: int, why: str) -> None:
+        e = int(np.flatnonzero(sharp & (topo.edges == v).any(axis=1))[0])
+        a, b = (int(x) for x in topo.edges[e])
+        raise UnsupportedError(f"crease through vertex {v}: {why} not supported yet", mesh.where("crease", (a, b)))
+
+    for v in np.flatnonzero(count > 0).tolist():
+        if topo.vertex_is_boundary[v]:
+            refuse(v, "creases reaching an open boundary are")
+        if topo.valence[v] != 4:
+            refuse(v, f"creases through extraordinary points (valence {int(topo.valence[v])}) are")
+        if count[v] == 1:
+            refuse(v, "a crease ending inside the mesh (a dart) is")
+        if count[v] > 2:
+            refuse(v, f"{int(count[v])} sharp edges meeting (a corner) are")
+        flags = sharp[topo.edge_of[topo.one_ring(v)]]
+        if not (flags[0] == flags[2] and flags[1] == flags[3]):
+            refuse(v, "a crease turning at a regular vertex is")
+    # The G1 construction at an EP assumes smooth (C1) far sides on its faces.
+    base = mesh.face_offsets[:-1]
+    face_sharp = sharp[topo.edge_of[base[:, None] + np.arange(4)]].any(axis=1)
+    for v in topo.extraordinary.tolist():
+        touched = topo.face[topo.one_ring(v)]
+        if face_sharp[touched].any():
+            f = int(touched[face_sharp[touched]][0])
+            raise UnsupportedError(
+                f"crease on face {f} around the extraordinary point {v}: not supported yet",
+                mesh.where("face", f),
+            )
 
 
 def build_operator(
@@ -164,7 +198,7 @@ def build_operator(
     _refuse_degenerate_eps(topo, eps)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
-    extraction = cubic_extraction(topo, is_ep)
+    extraction = cubic_extraction(topo, is_ep, sharp_edge=topo.edge_sharpness >= INFINITELY_SHARP)
     n, n_anchor = extraction.n_points, extraction.n_anchors
     irregular_face = is_ep[mesh.quads()].any(axis=1)
     cubic_faces = faces[~irregular_face[faces]]

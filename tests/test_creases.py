@@ -1,0 +1,157 @@
+"""Infinitely sharp creases through regular vertices (issue 4).
+
+Across a crease each face reads a mirrored neighbour (the phantom row 2 P_0 - P_1), and the
+crease's edge and vertex points are those of the crease polygon's own cubic B-spline.  With
+uniform intervals this is exactly Catmull-Clark's crease limit surface (OpenSubdiv's rules);
+with non-uniform ones the crease curve is the non-uniform B-spline of its polygon."""
+
+import numpy as np
+import pytest
+from OCP.Geom import Geom_BSplineCurve
+from OCP.GeomConvert import GeomConvert_BSplineCurveToBezierCurve
+from OCP.gp import gp_Pnt
+from OCP.TColgp import TColgp_Array1OfPnt
+from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+import patching
+from patching.evaluation import evaluate_nets
+from patching.primitives import torus_grid
+from patching.subdivision import limit_points, subdivide
+from tests.test_g1_patches import shared_edge_normal_jumps
+
+M, N, ROW = 8, 6, 2
+
+
+def idx(a: int, b: int) -> int:
+    return (a % M) * N + (b % N)
+
+
+def creased_torus(du=None, dv=None, seed=0) -> patching.ControlMesh:
+    """An M x N torus with a closed crease along the ring of vertices (ROW, b)."""
+    mesh = torus_grid(M, N, du, dv)
+    rng = np.random.default_rng(seed)
+    points = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
+    creases = {(idx(ROW, b), idx(ROW, b + 1)): np.inf for b in range(N)}
+    return patching.from_arrays(points, mesh.quads(), intervals=dict(mesh.intervals), creases=creases, name="creased")
+
+
+def distance_to_surface(surface, q) -> float:
+    """Distance from q to the patches, by Gauss-Newton from the patch centres."""
+    nets = [net for _, _, _, net in surface.patches()]
+    centres = np.array([net.mean(axis=(0, 1)) for net in nets])
+    best = np.inf
+    for c in np.argsort(np.linalg.norm(centres - q, axis=1))[:4]:
+        st = np.array([0.5, 0.5])
+        for _ in range(30):
+            p, ds, dt = evaluate_nets(nets[c][None], st[:1], st[1:], derivatives=True)
+            jac = np.stack([ds[0, 0], dt[0, 0]], 1)
+            st = np.clip(st + np.linalg.lstsq(jac, q - p[0, 0], rcond=None)[0], 0.0, 1.0)
+        best = min(best, float(np.linalg.norm(evaluate_nets(nets[c][None], st[:1], st[1:])[0, 0] - q)))
+    return best
+
+
+def test_uniform_crease_is_catmull_clarks_crease_limit_surface():
+    mesh = creased_torus()
+    surface = patching.build(mesh)
+    refined = subdivide(mesh, 3, rules="opensubdiv")
+    worst = max(distance_to_surface(surface, q) for q in limit_points(refined))
+    # Gauss-Newton converges to round-off on these bicubic patches.
+    assert worst <= 1e-12 * surface.size
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_non_uniform_crease_curve_is_the_bspline_of_its_polygon(seed):
+    rng = np.random.default_rng(seed)
+    du, dv = rng.uniform(1, 20, M), rng.uniform(1, 20, N)
+    mesh = creased_torus(du, dv, seed)
+    surface = patching.build(mesh)
+    # OCC's periodic cubic B-spline of the crease polygon, knots from the crease strip's
+    # intervals (DESIGN 2: pole l is P[(l - 2) mod N]).
+    poles = TColgp_Array1OfPnt(1, N)
+    for l in range(1, N + 1):
+        poles.SetValue(l, gp_Pnt(*map(float, mesh.vertices[idx(ROW, (l - 2) % N)])))
+    knots = np.concatenate([[0.0], np.cumsum(dv)])
+    k = TColStd_Array1OfReal(1, N + 1)
+    mult = TColStd_Array1OfInteger(1, N + 1)
+    for i, x in enumerate(knots):
+        k.SetValue(i + 1, float(x))
+        mult.SetValue(i + 1, 1)
+    curve = Geom_BSplineCurve(poles, k, mult, 3, True)
+    conv = GeomConvert_BSplineCurveToBezierCurve(curve)
+    segments = []
+    for i in range(1, conv.NbArcs() + 1):
+        arc = conv.Arc(i)
+        segments.append(np.array([[arc.Pole(j).X(), arc.Pole(j).Y(), arc.Pole(j).Z()] for j in range(1, 5)]))
+    # Every patch side lying on the crease is one of those segments (either direction).
+    crease_faces = 0
+    for _, _, face, net in surface.patches():
+        a = face // N
+        if a not in (ROW - 1, ROW):
+            continue
+        side = net[3, :] if a == ROW - 1 else net[0, :]  # the side on the row a = ROW
+        best = min(min(np.abs(seg - side).max(), np.abs(seg[::-1] - side).max()) for seg in segments)
+        assert best <= 1e-12 * surface.size
+        crease_faces += 1
+    assert crease_faces == 2 * N
+
+
+def test_creased_torus_is_a_valid_solid_c0_on_the_crease_and_g1_elsewhere():
+    from export import check_continuity, to_shape
+
+    rng = np.random.default_rng(4)
+    mesh = creased_torus(rng.uniform(1, 5, M), rng.uniform(1, 5, N))
+    surface = patching.build(mesh)
+    report = check_continuity(to_shape(surface))
+    assert report.valid and report.n_solids == 1 and report.n_free_edges == 0
+    assert report.max_gap_relative <= 1e-12
+    assert report.max_normal_jump_deg > 5.0  # the crease is a real C0 angle
+    # every edge off the crease is G1 (numpy check, crease sides excluded)
+    smooth = patching.build(torus_grid(M, N, rng.uniform(1, 5, M), rng.uniform(1, 5, N)))
+    assert shared_edge_normal_jumps(smooth)[0] <= 1e-7
+    angles = _jumps_off_crease(surface)
+    assert angles <= 1e-7
+
+
+def _jumps_off_crease(surface) -> float:
+    topo = surface.topology
+    nets = [net for _, _, _, net in surface.patches()]
+    faces = [face for _, _, face, _ in surface.patches()]
+    uses: dict[int, list[tuple[int, int]]] = {}
+    for row in range(topo.side_edge.shape[0]):
+        for side in range(4):
+            uses.setdefault(int(topo.side_edge[row, side]), []).append((row, side))
+    w = np.linspace(0.05, 0.95, 7)
+    worst = 0.0
+    for pair in uses.values():
+        (r1, s1), (r2, s2) = pair
+        rows_a = {faces[r1] // N, faces[r2] // N}
+        if rows_a == {ROW - 1, ROW} and s1 in (1, 3):
+            continue  # the crease itself
+        normals = []
+        for row, side in pair:
+            u = 1 - w if topo.side_reversed[row, side] else w
+            s, t = {0: (u, 0 * u), 1: (1 + 0 * u, u), 2: (1 - u, 1 + 0 * u), 3: (0 * u, 1 - u)}[side]
+            _, ds, dt = evaluate_nets(nets[row][None], s, t, derivatives=True)
+            nrm = np.cross(ds[0], dt[0])
+            normals.append(nrm / np.linalg.norm(nrm, axis=1, keepdims=True))
+        n1, n2 = normals  # atan2, not arccos: arccos(1 - eps) is sqrt(2 eps), 1e-6 degrees
+        angle = np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), (n1 * n2).sum(1))
+        worst = max(worst, float(np.degrees(angle).max()))
+    return worst
+
+
+def test_unsupported_crease_shapes_are_refused_naming_the_place():
+    mesh = torus_grid(M, N)
+    faces = mesh.quads()
+    dart = {(idx(2, 0), idx(2, 1)): 10.0, (idx(2, 1), idx(2, 2)): 10.0}
+    with pytest.raises(patching.UnsupportedError, match="dart"):
+        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=dart))
+    corner = {(idx(2, b), idx(2, b + 1)): 10.0 for b in range(N)}
+    corner[(idx(2, 0), idx(3, 0))] = 10.0
+    with pytest.raises(patching.UnsupportedError, match="corner"):
+        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=corner))
+    turn = {(idx(2, 0), idx(2, 1)): 10.0, (idx(2, 1), idx(3, 1)): 10.0}
+    turn.update({(idx(3, b), idx(3, b + 1)): 10.0 for b in range(1, N)})
+    turn.update({(idx(2, b), idx(2, b + 1)): 10.0 for b in range(N) if b not in (1,)})
+    with pytest.raises(patching.UnsupportedError):
+        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=turn))
