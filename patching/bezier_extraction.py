@@ -173,8 +173,30 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
 
+def _crease_neighbour_intervals(topo: Topology, hs: np.ndarray, corner_vertex: np.ndarray):
+    """Intervals of the crease legs before origin(h) and after dest(h), for sharp half-edges hs.
+
+    The leg before continues the crease straight through origin(h) (prev(twin(prev(h))), a
+    regular crease or straight boundary vertex); at a corner it is mirrored (h's own interval);
+    at a valence-2 boundary vertex that is not a corner (interpolateboundary 2) the crease turns
+    onto the other boundary edge, prev(h).  Likewise after dest(h)."""
+    iv = topo.halfedge_interval
+    twin_prev = topo.twin[topo.prev[hs]]
+    straight_before = topo.prev[np.maximum(twin_prev, 0)]
+    before = np.where(twin_prev >= 0, iv[straight_before], iv[topo.prev[hs]])
+    before = np.where(corner_vertex[topo.origin[hs]], iv[hs], before)
+    twin_next = topo.twin[topo.next[hs]]
+    straight_after = topo.next[np.maximum(twin_next, 0)]
+    after = np.where(twin_next >= 0, iv[straight_after], iv[topo.next[hs]])
+    after = np.where(corner_vertex[topo.dest[hs]], iv[hs], after)
+    return before, after
+
+
 def cubic_extraction(
-    topo: Topology, is_ep: np.ndarray | None = None, sharp_edge: np.ndarray | None = None
+    topo: Topology,
+    is_ep: np.ndarray | None = None,
+    sharp_edge: np.ndarray | None = None,
+    corner_vertex: np.ndarray | None = None,
 ) -> CubicExtraction:
     """C0 bicubic extraction of every quad face of an all-quad mesh (module docstring).
 
@@ -182,7 +204,9 @@ def cubic_extraction(
     sharp_edge: (e,) bool, infinitely sharp edges (default none), running straight through
     regular interior vertices.  Across them the faces read a mirrored neighbour; their edge
     and vertex points are those of the crease polygon's own cubic B-spline (its strip
-    intervals), so both sides end exactly on the crease curve, C0.
+    intervals), so both sides end exactly on the crease curve, C0.  Boundary edges are passed
+    here as sharp when the boundary is interpolated.
+    corner_vertex: (n,) bool, vertices where creases end at a corner (interpolated).
     Faces need their four sides interior for edge points and their corners interior for
     vertex points; rows of other faces are left incomplete and must not be used.
     """
@@ -199,6 +223,8 @@ def cubic_extraction(
 
     if sharp_edge is None:
         sharp_edge = np.zeros(topo.n_edges, dtype=bool)
+    if corner_vertex is None:
+        corner_vertex = np.zeros(n, dtype=bool)
     r, c, w = _face_point_triplets(topo, is_ep, anchor_column, sharp_edge)
     fp = sp.csr_matrix((w, (r, c)), shape=(n_he, columns))
 
@@ -215,16 +241,20 @@ def cubic_extraction(
         shape=(n_he, n_he),
     )
     # Crease edge points: the leg points of the crease polygon (1D double knot insertion with
-    # the intervals of the crease before origin(h), of h, and after dest(h)).
+    # the intervals of the crease before origin(h), of h, and after dest(h)).  Open boundaries
+    # are creases too (interpolateboundary 1, 2): there a leg point near the far end is also
+    # needed, as no twin provides it.  At a corner the crease polygon ends: the leg before it
+    # is mirrored (the phantom point 2 P_0 - P_1), so the curve ends at the corner point.
     hs = np.flatnonzero(sharp_he)
-    prev_leg = topo.prev[topo.twin[topo.prev[hs]]]  # the crease edge before origin(h)
-    next_leg = topo.next[topo.twin[topo.next[hs]]]  # the crease edge after dest(h)
-    a = _safe_ratio(iv[prev_leg], iv[prev_leg] + iv[hs] + iv[next_leg])
-    crease_edge = sp.csr_matrix(
-        (np.concatenate([1 - a, a]), (np.concatenate([hs, hs]), np.concatenate([topo.origin[hs], topo.dest[hs]]))),
-        shape=(n_he, columns),
-    )
-    edge_rows = (edge_w @ fp + crease_edge).tocsr()
+    interval_before, interval_after = _crease_neighbour_intervals(topo, hs, corner_vertex)
+    d = iv[hs]
+    total = interval_before + d + interval_after
+    a = _safe_ratio(interval_before, total)
+    b = _safe_ratio(interval_before + d, total)
+    ends = (np.concatenate([hs, hs]), np.concatenate([topo.origin[hs], topo.dest[hs]]))
+    crease_near_origin = sp.csr_matrix((np.concatenate([1 - a, a]), ends), shape=(n_he, columns))
+    crease_near_dest = sp.csr_matrix((np.concatenate([1 - b, b]), ends), shape=(n_he, columns))
+    edge_rows = (edge_w @ fp + crease_near_origin).tocsr()
     # Vertex points: w_h = d(spoke before) * d(spoke after next), spokes in rotation order.
     before = np.where(twin >= 0, topo.next[np.maximum(twin, 0)], -1)  # spoke i-1 of corner h
     after = topo.twin[topo.prev]  # spoke i+1
@@ -232,24 +262,33 @@ def cubic_extraction(
     interior_corner = ~topo.vertex_is_boundary[topo.origin] & (before >= 0) & (after2 >= 0)
     hv = np.flatnonzero(interior_corner)
     weight = iv[before[hv]] * iv[after2[hv]]
-    total = np.bincount(topo.origin[hv], weights=weight, minlength=n)
+    total_w = np.bincount(topo.origin[hv], weights=weight, minlength=n)
     count = np.bincount(topo.origin[hv], minlength=n)
-    vw = _safe_ratio(weight, total[topo.origin[hv]], fallback=0.0)
-    degenerate = total[topo.origin[hv]] <= 0
+    vw = _safe_ratio(weight, total_w[topo.origin[hv]], fallback=0.0)
+    degenerate = total_w[topo.origin[hv]] <= 0
     vw[degenerate] = 1.0 / count[topo.origin[hv]][degenerate]
     on_crease = np.zeros(n, dtype=bool)
-    on_crease[topo.origin[hs]] = True
+    on_crease[topo.edges[sharp_edge].ravel()] = True
     keep = ~on_crease[topo.origin[hv]]
     vertex_w = sp.csr_matrix((vw[keep], (topo.origin[hv][keep], hv[keep])), shape=(n, n_he))
     # At a crease vertex: the crease B-spline's vertex point from its two leg points near it,
-    # each weighted by the other leg's interval.
-    out = hs[on_crease[topo.origin[hs]]]
-    crease_total = np.bincount(topo.origin[out], weights=iv[out], minlength=n)
-    cw = _safe_ratio(crease_total[topo.origin[out]] - iv[out], crease_total[topo.origin[out]])
-    crease_vertex = sp.csr_matrix((cw, (topo.origin[out], out)), shape=(n, n_he))
+    # each weighted by the other leg's interval; a corner keeps its control point.
+    lone = hs[twin[hs] < 0]  # boundary legs also end at their dest
+    leg_vertex = np.concatenate([topo.origin[hs], topo.dest[lone]])
+    leg_row = np.concatenate([hs, n_he + lone])  # rows of [crease near origin; near dest]
+    leg_d = np.concatenate([d, iv[lone]])
+    corner = corner_vertex[leg_vertex]
+    leg_vertex, leg_row, leg_d = leg_vertex[~corner], leg_row[~corner], leg_d[~corner]
+    leg_total = np.bincount(leg_vertex, weights=leg_d, minlength=n)
+    cw = _safe_ratio(leg_total[leg_vertex] - leg_d, leg_total[leg_vertex])
+    crease_vertex = sp.csr_matrix((cw, (leg_vertex, leg_row)), shape=(n, 2 * n_he))
+    legs = sp.vstack([edge_rows, crease_near_dest]).tocsr()
+    corners = np.flatnonzero(corner_vertex)
+    corner_rows = sp.csr_matrix((np.ones(corners.size), (corners, corners)), shape=(n, columns))
+    vertex_rows = vertex_w @ fp + crease_vertex @ legs + corner_rows
 
     # Stack [FP; EP; V] and select the 16 rows of every face.
-    stack = sp.vstack([fp, edge_rows, vertex_w @ fp + crease_vertex @ edge_rows]).tocsr()
+    stack = sp.vstack([fp, edge_rows, vertex_rows, crease_near_dest]).tocsr()
     base = topo.mesh.face_offsets[:-1]
     f = base.size
     sel = np.zeros((f, 4, 4), dtype=np.int64)
@@ -261,6 +300,8 @@ def cubic_extraction(
         sel[:, i, j] = 2 * n_he + topo.origin[hk]
         (i0, j0), (i1, j1) = EDGE_POSITIONS[k]
         sel[:, i0, j0] = n_he + hk
-        sel[:, i1, j1] = n_he + np.maximum(twin[hk], 0)
+        # near corner k+1: the twin's point near its origin, or on an open boundary the
+        # crease leg point near dest (rows after the vertex points)
+        sel[:, i1, j1] = np.where(twin[hk] >= 0, n_he + np.maximum(twin[hk], 0), 2 * n_he + n + hk)
     nets = stack[sel.ravel()]
     return CubicExtraction(nets.tocsr(), anchor_column, n, n_anchors)

@@ -83,7 +83,7 @@ def _refuse_unsupported(topo: Topology) -> None:
     opposite sharp edges at an interior valence-4 vertex) and no face around an EP touches
     them; darts, corners, turning creases, creases at or next to EPs and holes are refused."""
     mesh = topo.mesh
-    sharp = topo.edge_sharpness >= INFINITELY_SHARP
+    sharp = sharp_edges(topo)
     if sharp.any():
         _refuse_unsupported_creases(topo, sharp)
     corners = [v for v, s in mesh.corners.items() if s > 0]
@@ -97,6 +97,23 @@ def _refuse_unsupported(topo: Topology) -> None:
         raise UnsupportedError(f"hole tag on face {f}: holes are not supported yet", mesh.where("hole", f))
 
 
+def sharp_edges(topo: Topology) -> np.ndarray:
+    """(e,) bool: infinitely sharp edges, and the open boundary when it is interpolated
+    (interpolateboundary 1 or 2, DESIGN 1: boundary edges are infinitely sharp creases)."""
+    sharp = topo.edge_sharpness >= INFINITELY_SHARP
+    if topo.mesh.interpolate_boundary in (1, 2):
+        sharp = sharp | topo.edge_is_boundary
+    return sharp
+
+
+def corner_vertices(topo: Topology) -> np.ndarray:
+    """(n,) bool: boundary vertices with one face, interpolated as corners under
+    interpolateboundary 1 (mode 2 smooths them: the boundary crease turns through them)."""
+    if topo.mesh.interpolate_boundary != 1:
+        return np.zeros(topo.n_vertices, dtype=bool)
+    return topo.vertex_is_boundary & (topo.valence == 2)
+
+
 def _refuse_unsupported_creases(topo: Topology, sharp: np.ndarray) -> None:
     mesh = topo.mesh
     count = np.bincount(topo.edges[sharp].ravel(), minlength=topo.n_vertices)
@@ -108,7 +125,13 @@ def _refuse_unsupported_creases(topo: Topology, sharp: np.ndarray) -> None:
 
     for v in np.flatnonzero(count > 0).tolist():
         if topo.vertex_is_boundary[v]:
-            refuse(v, "creases reaching an open boundary are")
+            if topo.valence[v] > 3:
+                refuse(v, f"a boundary vertex of valence {int(topo.valence[v])} is")
+            if topo.valence[v] == 2 and mesh.interpolate_boundary == 2:
+                refuse(v, "a smoothed corner (interpolateboundary 2 at a vertex with one face) is")
+            if count[v] != 2:
+                refuse(v, "a crease reaching an open boundary is")
+            continue
         if topo.valence[v] != 4:
             refuse(v, f"creases through extraordinary points (valence {int(topo.valence[v])}) are")
         if count[v] == 1:
@@ -198,7 +221,7 @@ def build_operator(
     _refuse_degenerate_eps(topo, eps)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
-    extraction = cubic_extraction(topo, is_ep, sharp_edge=topo.edge_sharpness >= INFINITELY_SHARP)
+    extraction = cubic_extraction(topo, is_ep, sharp_edge=sharp_edges(topo), corner_vertex=corner_vertices(topo))
     n, n_anchor = extraction.n_points, extraction.n_anchors
     irregular_face = is_ep[mesh.quads()].any(axis=1)
     cubic_faces = faces[~irregular_face[faces]]
@@ -294,16 +317,19 @@ def _refuse_torn_knots(topo: Topology, spans: np.ndarray) -> None:
 
 
 def _refuse_boundary_patches(topo: Topology, faces: np.ndarray) -> None:
-    """A patch needs interior corners and sides (open boundaries come with issue 4)."""
+    """Under interpolateboundary 0 the faces on the boundary give no surface in OpenSubdiv;
+    that mode is not built yet for faces of nonzero area there (1 and 2 are)."""
     mesh = topo.mesh
+    if mesh.interpolate_boundary in (1, 2):
+        return
     h = mesh.face_offsets[faces][:, None] + np.arange(4)
     open_side = (topo.twin[h] < 0) | topo.vertex_is_boundary[topo.origin[h]]
     bad = np.flatnonzero(open_side.any(axis=1))
     if bad.size:
         f = int(faces[bad[0]])
         raise UnsupportedError(
-            f"face {f} lies on an open boundary with a non-zero knot interval: open boundaries "
-            "are only supported with zero (clamped) outer strips so far",
+            f"face {f} lies on an open boundary with a non-zero knot interval, and "
+            "interpolateboundary 0 is not supported yet (use 1 or 2, or zero outer strips)",
             mesh.where("face", f),
         )
 

@@ -101,9 +101,12 @@ def test_clamped_open_grid_is_an_open_shell_topology():
     assert op.topology.edge_use_count.min() == 1
 
 
-def test_unclamped_open_grid_is_refused_with_the_face_named():
-    mesh = open_grid(6, 6)
-    with pytest.raises(UnsupportedError, match="open boundar") as info:
+def test_interpolateboundary_0_with_boundary_patches_is_refused_with_the_face_named():
+    from patching import from_arrays
+
+    grid = open_grid(6, 6)
+    mesh = from_arrays(grid.vertices, grid.quads(), interpolate_boundary=0)
+    with pytest.raises(UnsupportedError, match="interpolateboundary 0") as info:
         build_operator(mesh)
     assert "face" in info.value.where
 

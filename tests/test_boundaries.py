@@ -1,0 +1,50 @@
+"""Open boundaries as creases (issue 4; DESIGN 1: interpolateboundary 1 by default)."""
+
+import numpy as np
+import pytest
+
+import patching
+from patching.primitives import open_grid
+from patching.subdivision import limit_points, subdivide
+from tests.test_creases import distance_to_surface
+from tests.test_g1_patches import shared_edge_normal_jumps
+
+
+def jittered_grid(m, n, mode, seed=0, u=None, v=None):
+    grid = open_grid(m, n, u, v)
+    rng = np.random.default_rng(seed)
+    points = grid.vertices + rng.normal(scale=0.1, size=grid.vertices.shape)
+    return patching.from_arrays(points, grid.quads(), intervals=dict(grid.intervals), interpolate_boundary=mode, name="grid")
+
+
+def test_uniform_open_grid_is_catmull_clarks_limit_with_interpolated_corners():
+    mesh = jittered_grid(7, 6, mode=1)
+    surface = patching.build(mesh)
+    assert surface.n_patches == 6 * 5  # every face, boundary faces included
+    refined = subdivide(mesh, 3, rules="opensubdiv")
+    worst = max(distance_to_surface(surface, q) for q in limit_points(refined))
+    assert worst <= 1e-12 * surface.size
+    # corners interpolated: the patch corners at the grid corners are the control points
+    corners = [0, 5, 36, 41]
+    pts = np.concatenate([net[[0, -1]][:, [0, -1]].reshape(-1, 3) for _, _, _, net in surface.patches()])
+    for c in corners:
+        assert np.min(np.linalg.norm(pts - mesh.vertices[c], axis=1)) <= 1e-14 * surface.size
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_non_uniform_open_grid_is_a_valid_g1_shell(seed):
+    from export import check_continuity, to_shape
+
+    rng = np.random.default_rng(seed)
+    mesh = jittered_grid(7, 6, 1, seed, rng.uniform(1, 20, 6), rng.uniform(1, 20, 5))
+    surface = patching.build(mesh)
+    angle, gap = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-7 and gap <= 1e-12 * surface.size
+    report = check_continuity(to_shape(surface))
+    assert report.valid and report.n_solids == 0 and report.n_shells == 1
+    assert report.n_free_edges == 2 * (6 + 5)
+
+
+def test_smoothed_corners_of_mode_2_are_refused_for_now():
+    with pytest.raises(patching.UnsupportedError, match="smoothed corner"):
+        patching.build_operator(jittered_grid(5, 5, mode=2))
