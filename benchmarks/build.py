@@ -6,9 +6,9 @@ topology, and written to STEP, in the same run.
 Meshes: a 100 x 100 torus grid (10k regular faces, intervals 1 to 20); an icosahedron refined
 five times (15k faces, few EPs); and a "coarse" mesh, an icosphere's triangles split into quads
 once (15k faces, half of the vertices EPs of valence 3, 5 and 6).  EP meshes get intervals
-drawn from {1, 2, 5} per strip.  ``pack`` compares packed multi-span faces with one face a
+drawn from {1, 2, 5} per strip.  ``creased`` is the torus with ten crease rings.  ``pack`` compares packed multi-span faces with one face a
 patch (face counts, STEP size, times; ``benchmarks/pack.py``).  Run by hand:
-``.venv/bin/python benchmarks/build.py [torus|refined|coarse|pack ...]``.
+``.venv/bin/python benchmarks/build.py [torus|creased|refined|coarse|pack ...]``.
 """
 
 from __future__ import annotations
@@ -83,11 +83,22 @@ def ep_mesh(kind: str):
     return patching.from_arrays(quad.vertices, quad.quads(), intervals=intervals, name=f"bench_{kind}")
 
 
+def creased_torus() -> patching.ControlMesh:
+    """The 100 x 100 torus with ten infinitely sharp crease rings (issue 4)."""
+    m, n = 100, 100
+    rng = np.random.default_rng(0)
+    base = torus_grid(m, n, rng.uniform(1, 20, m), rng.uniform(1, 20, n))
+    creases = {(a * n + b, a * n + (b + 1) % n): np.inf for a in range(0, m, 10) for b in range(n)}
+    return patching.from_arrays(base.vertices, base.quads(), intervals=dict(base.intervals), creases=creases, name="bench_creased")
+
+
 def run(kind: str) -> None:
     if kind == "torus":
         m, n = 100, 100
         rng = np.random.default_rng(0)
         mesh = torus_grid(m, n, rng.uniform(1, 20, m), rng.uniform(1, 20, n), name="bench_torus")
+    elif kind == "creased":
+        mesh = creased_torus()
     else:
         mesh = ep_mesh(kind)
     topo = patching.Topology(mesh)
@@ -149,7 +160,7 @@ def run_pack() -> None:
 
 
 def main() -> None:
-    for kind in sys.argv[1:] or ["torus", "refined", "coarse", "pack"]:
+    for kind in sys.argv[1:] or ["torus", "creased", "refined", "coarse", "pack"]:
         run_pack() if kind == "pack" else run(kind)
 
 
