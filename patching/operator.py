@@ -81,7 +81,7 @@ def _refuse_unsupported(topo: Topology) -> None:
 
     Infinitely sharp creases are built where they run straight through regular vertices (two
     opposite sharp edges at an interior valence-4 vertex) and no face around an EP touches
-    them; darts, corners, turning creases, creases at or next to EPs and holes are refused."""
+    them; darts, corners, turning creases and creases at or next to EPs are refused."""
     mesh = topo.mesh
     sharp = sharp_edges(topo)
     if sharp.any():
@@ -92,9 +92,6 @@ def _refuse_unsupported(topo: Topology) -> None:
             f"corner tag on vertex {corners[0]}: infinitely sharp corners are not supported yet",
             mesh.where("corner", corners[0]),
         )
-    if mesh.holes:
-        f = min(mesh.holes)
-        raise UnsupportedError(f"hole tag on face {f}: holes are not supported yet", mesh.where("hole", f))
 
 
 def sharp_edges(topo: Topology) -> np.ndarray:
@@ -205,7 +202,11 @@ def build_operator(
     _refuse_unsupported(topo)
     spans = face_spans(topo)
     _refuse_torn_knots(topo, spans)
-    faces = np.flatnonzero(np.all(spans > 0, axis=1))
+    # Hole faces (OpenSubdiv's `t hole`) give no patch; their control points still shape the
+    # faces around them, whose rules do not change.
+    has_patch = np.all(spans > 0, axis=1)
+    has_patch[list(mesh.holes)] = False
+    faces = np.flatnonzero(has_patch)
     _refuse_boundary_patches(topo, faces)
     eps = np.union1d(topo.extraordinary, np.asarray(force_extraordinary, dtype=np.int64))
     low = eps[topo.valence[eps] < 3]

@@ -48,3 +48,20 @@ def test_non_uniform_open_grid_is_a_valid_g1_shell(seed):
 def test_smoothed_corners_of_mode_2_are_refused_for_now():
     with pytest.raises(patching.UnsupportedError, match="smoothed corner"):
         patching.build_operator(jittered_grid(5, 5, mode=2))
+
+
+def test_hole_faces_give_no_patch_and_leave_their_neighbours_unchanged():
+    """OpenSubdiv's `t hole`: the face is not drawn, the rules around it do not change."""
+    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+
+    base = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, 2)
+    faces = [list(base.face(f)) for f in range(base.n_faces)]
+    holed = patching.from_arrays(base.vertices, faces, intervals=dict(base.intervals), holes=[0, 7], name="holed")
+    full, part = patching.build(base), patching.build(holed)
+    assert part.n_patches == full.n_patches - 2
+    nets = {f: net for _, _, f, net in full.patches()}
+    for _, _, f, net in part.patches():
+        np.testing.assert_array_equal(net, nets[f])
+    assert not part.topology.is_closed and part.topology.edge_use_count.min() == 1
+    angle, gap = shared_edge_normal_jumps(part)
+    assert angle <= 1e-7 and gap <= 1e-12 * part.size
