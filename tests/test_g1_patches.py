@@ -30,13 +30,17 @@ def quad_mesh_with_eps(kind: str) -> patching.ControlMesh:
 
 
 def with_random_intervals(mesh: patching.ControlMesh, ratio: float, seed: int) -> patching.ControlMesh:
+    """The same mesh and tags with strip intervals drawn uniformly from [1, ratio]."""
     topo = Topology(mesh)
     rng = np.random.default_rng(seed)
     values = rng.uniform(1.0, ratio, topo.n_strips)
     first = np.unique(topo.edge_strip, return_index=True)[1]
     iv = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
     faces = [list(mesh.face(i)) for i in range(mesh.n_faces)]
-    return patching.from_arrays(mesh.vertices, faces, intervals=iv, name=mesh.name)
+    return patching.from_arrays(
+        mesh.vertices, faces, intervals=iv, creases=dict(mesh.creases), corners=dict(mesh.corners),
+        holes=sorted(mesh.holes), interpolate_boundary=mesh.interpolate_boundary, name=mesh.name,
+    )
 
 
 def shared_edge_normal_jumps(surface, samples: int = 7) -> tuple[float, float]:

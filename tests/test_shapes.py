@@ -5,27 +5,14 @@ the refusals into builds; this test keeps every shape from crashing meanwhile.""
 
 import warnings
 
-import numpy as np
 import pytest
 
 import patching
 from patching.errors import NupatchError
 from tests.conftest import shape_files
+from tests.test_g1_patches import with_random_intervals
 
 SHAPES = shape_files("catmark_")
-
-
-def _with_random_intervals(mesh, seed):
-    topo = patching.Topology(mesh)
-    rng = np.random.default_rng(seed)
-    values = rng.uniform(1.0, 5.0, topo.n_strips)
-    first = np.unique(topo.edge_strip, return_index=True)[1]
-    iv = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
-    faces = [list(mesh.face(f)) for f in range(mesh.n_faces)]
-    return patching.from_arrays(
-        mesh.vertices, faces, intervals=iv, creases=dict(mesh.creases), corners=dict(mesh.corners),
-        holes=sorted(mesh.holes), interpolate_boundary=mesh.interpolate_boundary, name=mesh.name,
-    )
 
 
 @pytest.mark.skipif(not SHAPES, reason="../shared/opensubdiv-shapes is absent")
@@ -39,7 +26,7 @@ def test_shape_builds_or_is_refused_in_one_line(path, intervals):
         try:
             mesh = patching.read_mesh(path)
             if intervals == "random":
-                mesh = _with_random_intervals(mesh, seed=len(path.stem))
+                mesh = with_random_intervals(mesh, 5.0, seed=len(path.stem))
             surface = patching.build(mesh)
         except NupatchError as exc:
             assert str(exc) and "\n" not in str(exc)
