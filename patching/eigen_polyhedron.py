@@ -87,6 +87,7 @@ __all__ = [
     "spoke_lengths",
     "eigen_polyhedron",
     "vertex_rule_weights",
+    "spoke_terms",
     "local_subdivision_matrix",
     "rule_coefficients",
     "subdivision_eigenvalues",
@@ -339,26 +340,30 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     """
     d = _as_intervals(intervals)
     n = d.size
+    terms, mass = spoke_terms(d)
+    w = (3.0 / n) * terms.sum(axis=0) / mass.sum()
+    w[VERTEX] += (n - 3.0) / n
+    return w
+
+
+def spoke_terms(intervals) -> tuple[np.ndarray, np.ndarray]:
+    """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..], (n, 2n+1), and
+    ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which seed 000's dart
+    rule (``subdivision_rules``) splits between the two sides of the crease."""
+    d = _as_intervals(intervals)
+    n = d.size
     dm2, dp2, dm1 = np.roll(d, 2), np.roll(d, -2), np.roll(d, 1)
     g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)
     gn = np.roll(g, -1)
     f = dm1 * dp2
     m = f + np.roll(f, 1)
-    scale = 3.0 / (n * (m.sum() + f.sum()))
-    w = np.zeros(2 * n + 1)
-    w[VERTEX] = (n - 3.0) / n
-    e_idx = 1 + np.arange(n)
-    en_idx = 1 + (np.arange(n) + 1) % n
-    f_idx = 1 + n + np.arange(n)
-    # m_i H_i
-    w[VERTEX] += scale * np.sum(m * (1.0 - g))
-    np.add.at(w, e_idx, scale * m * g)
-    # f_i G_i
-    w[VERTEX] += scale * np.sum(f * (1.0 - g) * (1.0 - gn))
-    np.add.at(w, e_idx, scale * f * g * (1.0 - gn))
-    np.add.at(w, en_idx, scale * f * (1.0 - g) * gn)
-    np.add.at(w, f_idx, scale * f * g * gn)
-    return w
+    i = np.arange(n)
+    rows = np.zeros((n, 2 * n + 1))
+    rows[i, VERTEX] = m * (1.0 - g) + f * (1.0 - g) * (1.0 - gn)  # m_i H_i and f_i G_i on V
+    rows[i, 1 + i] = m * g + f * g * (1.0 - gn)  # on E_i
+    rows[i, 1 + (i + 1) % n] = f * (1.0 - g) * gn  # on E_{i+1}
+    rows[i, 1 + n + i] = f * g * gn  # on F_i
+    return rows, m + f
 
 
 # --------------------------------------------------------------------------------------------

@@ -120,26 +120,6 @@ def curve_derivative_weights(a, b):
 KINDS = {DART: "dart", CREASE: "crease", CORNER: "corner"}
 
 
-def _hg_weights(d: np.ndarray, size: int):
-    """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..] and ``m_i + f_i``
-    (seed 000 eq. 7 with ``f_i = d_{i-1} d_{i+2}``, as ``eigen_polyhedron.vertex_rule_weights``
-    reads it)."""
-    n = d.size
-    dm2, dp2, dm1 = np.roll(d, 2), np.roll(d, -2), np.roll(d, 1)
-    g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)
-    gn = np.roll(g, -1)
-    f = dm1 * dp2
-    m = f + np.roll(f, 1)
-    rows = np.zeros((n, size))
-    for i in range(n):
-        j = (i + 1) % n
-        rows[i, 0] += m[i] * (1 - g[i]) + f[i] * (1 - g[i]) * (1 - gn[i])
-        rows[i, 1 + i] += m[i] * g[i] + f[i] * g[i] * (1 - gn[i])
-        rows[i, 1 + j] += f[i] * (1 - g[i]) * gn[i]
-        rows[i, 1 + n + i] += f[i] * g[i] * gn[i]
-    return rows, m + f
-
-
 class TaggedRules(NamedTuple):
     """``matrix`` (size, size) local rows, ``defined`` (size,) bool, ``polyhedron`` (size, 2)
     the generalised eigen-polyhedron P^0, ``translation`` (2,) T: defined rows satisfy
@@ -230,7 +210,7 @@ def tagged_vertex_rules(kind: int, intervals: tuple, sharp: tuple, boundary: boo
     M = np.zeros((size, size))
     defined = np.zeros(size, bool)
     if kind == DART:
-        hg, w = _hg_weights(d, size)
+        hg, w = eig.spoke_terms(d)  # (n, 2n + 1): a dart is interior, so size = 2n + 1
         half = (n - 1) // 2 + 1
         xa, xb = hg[:half].sum(0), hg[half:].sum(0)
         wa, wb = w[:half].sum(), w[half:].sum()
