@@ -13,14 +13,20 @@ from .errors import OutputError
 __all__ = ["atomic_path", "atomic_write_text", "check_output_path", "umask"]
 
 
-def check_output_path(path: str | os.PathLike) -> Path:
-    """Refuse early an output whose directory is missing or not writable (OutputError)."""
-    path = Path(path)
+def _output_directory(path: Path) -> Path:
+    """The directory an output goes into; OutputError if it is missing or path is a directory."""
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise OutputError("output directory does not exist", str(parent))
     if path.is_dir():
-        raise OutputError("output path is a directory", str(path))
+        raise OutputError("the output path is a directory", str(path))
+    return parent
+
+
+def check_output_path(path: str | os.PathLike) -> Path:
+    """Refuse early an output whose directory is missing or not writable (OutputError)."""
+    path = Path(path)
+    parent = _output_directory(path)
     # Probe by creating a file: permission bits do not tell for root or read-only mounts.
     try:
         fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=parent)
@@ -55,11 +61,7 @@ def atomic_path(path: str | os.PathLike, empty_error: type[Exception] = OutputEr
     naming it; a writer that leaves an empty file raises ``empty_error``.
     """
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise OutputError("the output path is a directory", str(path))
-    if not directory.is_dir():
-        raise OutputError("output directory does not exist", str(directory))
+    directory = _output_directory(path)
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:
