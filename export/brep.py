@@ -49,7 +49,7 @@ from OCP.TopoDS import (
 from patching.errors import MeshError
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble"]
+__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face"]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
 RELATIVE_TOLERANCE = 1e-7
@@ -194,23 +194,8 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     for row, _degree, _face, net in patches:
         f = TopoDS_Face()
         builder.MakeFace(f, _bezier_surface(net), tol)
-        pcurves: dict[int, dict[bool, Geom2d_Line]] = {}
-        for k in range(4):
-            rev = bool(side_reversed[row, k])
-            pcurves.setdefault(int(side_edge[row, k]), {})[rev] = _pcurve(k, rev)
-        for eid, by_orientation in pcurves.items():
-            if len(by_orientation) == 2:  # seam: the edge bounds this face on two sides
-                builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], f, tol)
-            else:
-                (c,) = by_orientation.values()
-                builder.UpdateEdge(edges[eid], c, f, tol)
-        w = TopoDS_Wire()
-        builder.MakeWire(w)
-        for k in range(4):
-            e = edges[side_edge[row, k]]
-            builder.Add(w, e.Oriented(TopAbs_REVERSED if side_reversed[row, k] else TopAbs_FORWARD))
-        w.Closed(True)
-        builder.Add(f, w)
+        sides = [(row, k, _pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
+        bound_face(builder, f, sides, edges, side_edge, side_reversed, tol)
         faces.append(f)
 
     volumes: list[float] = []
@@ -238,6 +223,28 @@ def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> Non
                 "(its control points coincide)",
                 f"face {face}",
             )
+
+
+def bound_face(builder: BRep_Builder, face: TopoDS_Face, sides, edges, side_edge, side_reversed, tol: float) -> None:
+    """Give ``face`` the pcurves of its sides, a list of (patch row, side, pcurve) in wire
+    order (two pcurves on one edge that bounds the face twice: a seam), and its closed wire of
+    shared edges oriented by ``side_reversed``."""
+    pcurves: dict[int, dict[bool, object]] = {}
+    for r, k, c in sides:
+        pcurves.setdefault(int(side_edge[r, k]), {})[bool(side_reversed[r, k])] = c
+    for eid, by_orientation in pcurves.items():
+        if len(by_orientation) == 2:  # seam: the edge bounds this face on two sides
+            builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], face, tol)
+        else:
+            (c,) = by_orientation.values()
+            builder.UpdateEdge(edges[eid], c, face, tol)
+    wire = TopoDS_Wire()
+    builder.MakeWire(wire)
+    for r, k, _ in sides:
+        e = edges[int(side_edge[r, k])]
+        builder.Add(wire, e.Oriented(TopAbs_REVERSED if side_reversed[r, k] else TopAbs_FORWARD))
+    wire.Closed(True)
+    builder.Add(face, wire)
 
 
 def assemble(builder: BRep_Builder, edges, faces, closed: bool, inside_out) -> TopoDS_Shape:

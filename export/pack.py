@@ -41,12 +41,12 @@ from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TColgp import TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
-from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex, TopoDS_Wire
+from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 
 from patching.evaluation import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, shape_tolerance
+from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, bound_face, shape_tolerance
 
 __all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
@@ -305,22 +305,7 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
                 if side_reversed[r, original]:
                     a, b = b, a
                 sides.append((r, original, _line(a, b)))
-        pcurves: dict[int, dict[bool, object]] = {}
-        for r, k, c in sides:
-            pcurves.setdefault(int(side_edge[r, k]), {})[bool(side_reversed[r, k])] = c
-        for eid, by_orientation in pcurves.items():
-            if len(by_orientation) == 2:
-                builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], f, tol)
-            else:
-                (c,) = by_orientation.values()
-                builder.UpdateEdge(edges[eid], c, f, tol)
-        wire = TopoDS_Wire()
-        builder.MakeWire(wire)
-        for r, k, _ in sides:
-            e = edges[int(side_edge[r, k])]
-            builder.Add(wire, e.Oriented(TopAbs_REVERSED if side_reversed[r, k] else TopAbs_FORWARD))
-        wire.Closed(True)
-        builder.Add(f, wire)
+        bound_face(builder, f, sides, edges, side_edge, side_reversed, tol)
         faces.append(f)
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
