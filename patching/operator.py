@@ -174,12 +174,14 @@ def build_operator(
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     topo = topology or Topology(mesh)
-    steps = _semi_sharp_steps(topo)
+    # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
+    # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
+    # faces take one step, which turns every polygon into quads (issue 4; both done globally
+    # for now: the cost of the pre-subdivided mesh).  M of the refined mesh times the steps' S
+    # acts on the original control points; regular quad regions keep their surface (a step
+    # there is knot insertion).
+    steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
     if steps:
-        # Semi-sharp creases and corners (0 < s < 10): the sharp subdivision rules for ceil(s)
-        # steps (issue 4; done globally for now: the cost of the pre-subdivided mesh), after
-        # which every sharpness is 0; M of the refined mesh times the steps' S acts on the
-        # original control points.
         from .subdivision import subdivision_operator
 
         composed = sp.identity(mesh.n_vertices, format="csr")
@@ -189,16 +191,6 @@ def build_operator(
             composed = (step @ composed).tocsr()
         inner = build_operator(refined, angles=angles, anchors=anchors)
         return SurfaceOperator((inner.matrix @ composed).tocsr(), inner.groups, inner.topology, mesh.name)
-    if not mesh.is_quad_mesh:
-        # Seed 002 patches quads only: one subdivision step turns every polygon into quads
-        # (issue 4, done globally for now), and M of the refined mesh composed with the step's
-        # S is again an operator on the original control points.  Regular quad regions are
-        # unchanged as surfaces (a step there is knot insertion).
-        from .subdivision import subdivision_operator
-
-        step, refined = subdivision_operator(mesh, rules="seed")
-        inner = build_operator(refined, angles=angles, force_extraordinary=(), anchors=anchors)
-        return SurfaceOperator((inner.matrix @ step).tocsr(), inner.groups, inner.topology, mesh.name)
     _refuse_unsupported(topo)
     spans = face_spans(topo)
     _refuse_torn_knots(topo, spans)
