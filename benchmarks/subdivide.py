@@ -6,6 +6,16 @@ intervals (regular: knot insertion), and catmark_pawn from the OpenSubdiv shapes
 about 10k faces (EPs, creases, boundaries) when the shapes folder is there.  The reference
 time in the same run is one scipy CSR matrix-vector product of the same size (nnz), our floor.
 
+Cold construction (every EP and tagged vertex a new configuration), output faces/s on this
+machine: the bilinear face and edge solves of seed 000 eqs. 18-28 were one Python call per face
+and edge of every vertex (cached by configuration); they are now one vectorised numpy call per
+(valence) group of EPs and per (kind, shape) group of tagged vertices
+(``eigen_polyhedron.bilinear_rule``):
+
+    mesh                                   before     after
+    pawn x2, random intervals (589 solves)  1.6e5     9.0e5
+    icosphere x1, random (7682 EPs)         1.1e4     3.3e5   (target 2e5)
+
 Run: .venv/bin/python benchmarks/subdivide.py [--report]  (--report adds the EP eigen-structure\nby interval ratio and seed 001's blending-function maxima, standard vs modified angles)
 """
 
@@ -50,6 +60,23 @@ def meshes():
         yield f"pawn x2 ({mesh.n_faces} faces, creases)", mesh
         yield "pawn x2, opensubdiv rules", (mesh, "opensubdiv")
         yield "pawn x2, random intervals (EP solves)", _random_intervals(mesh)
+    sphere = _ep_sphere()
+    yield f"icosphere x1, random ({sphere[1]} EPs)", sphere[0]
+
+
+def _ep_sphere():
+    """A triangulated sphere (icosphere, 2562 vertices) refined once: 15,360 quads around 7,682
+    EPs (valence 3 at the old face centres, 5 and 6 at the old vertices), then random
+    intervals: every EP a new eigen-polyhedron configuration, the worst case for building S."""
+    import trimesh
+
+    from patching.mesh import from_arrays
+    from patching.subdivision import _Context
+
+    ico = trimesh.creation.icosphere(subdivisions=4)
+    mesh = _random_intervals(subdivide(from_arrays(np.asarray(ico.vertices), np.asarray(ico.faces)), steps=1))
+    ctx = _Context(mesh)
+    return mesh, int(np.sum(ctx.valence != 4))
 
 
 def _random_intervals(mesh, ratio=3.0, seed=0):

@@ -66,7 +66,7 @@ Reconstructions (the seed texts are PDF extractions; see each function for detai
 * ``M_i`` and ``F_i`` in eq. (11) (``M_i`` undefined in seed 002): they are seed 000's ``H_i``
   and ``G_i`` (section 4.3.1, eqs. 6-7): see :func:`vertex_rule_weights`.
 * The bilinear solves (seed 000 eqs. 20-21, seed 001 after eq. 17, both partly garbled): solved
-  here in closed form from first principles, see :func:`_bilinear_inverse`.
+  here in closed form from first principles, see :func:`bilinear_inverse`.
 * Seed 001's angle rule: its case "(2) n != 3" is "(2) n = 3", see :func:`eigen_angles`.
 """
 
@@ -88,7 +88,14 @@ __all__ = [
     "eigen_polyhedron",
     "vertex_rule_weights",
     "spoke_terms",
+    "BilinearError",
+    "bilinear_roots",
+    "bilinear_inverse",
+    "bilinear_rule",
+    "face_corners",
+    "edge_corners",
     "local_subdivision_matrix",
+    "local_subdivision_matrices",
     "rule_coefficients",
     "subdivision_eigenvalues",
     "limit_point_weights",
@@ -143,17 +150,20 @@ def characteristic_scale(valence: int) -> CharacteristicScale:
 # Input checking and the cache key
 
 
-def _as_intervals(intervals) -> np.ndarray:
+def _as_intervals(intervals, batch: bool = False) -> np.ndarray:
+    """(n,) float64 spoke intervals, checked; with ``batch`` also (g, n): g vertices at once."""
     d = np.asarray(intervals, dtype=np.float64)
-    if d.ndim != 1 or d.size < 3:
+    if d.ndim not in ((1, 2) if batch else (1,)) or d.shape[-1] < 3:
         raise ValueError(
             f"spoke intervals: need a 1-D list of at least 3 knot intervals, got shape {d.shape}"
         )
     bad = np.flatnonzero(~np.isfinite(d) | (d <= 0.0))
     if bad.size:
+        row = d.reshape(-1, d.shape[-1])[bad[0] // d.shape[-1]]
         raise ValueError(
             f"spoke intervals: the eigen-polyhedron rules need finite positive intervals on "
-            f"every spoke; spoke {int(bad[0])} has {d[bad[0]]!r} (intervals {d.tolist()})"
+            f"every spoke; spoke {int(bad[0] % d.shape[-1])} has {d.flat[bad[0]]!r} "
+            f"(intervals {row.tolist()})"
         )
     return d
 
@@ -240,7 +250,8 @@ def eigen_angles(intervals, angles: str = "standard") -> np.ndarray:
 
 
 def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
-    """Lengths ``l_i = |E^_i - V^|`` of the eigen-polyhedron's spokes, (n,) float64.
+    """Lengths ``l_i = |E^_i - V^|`` of the eigen-polyhedron's spokes, (n,) float64 (or (g, n)
+    for intervals (g, n): g vertices at once).
 
     ``"fourier"`` (default; seed 000 eq. 5 and seed 001 eq. 11, both giving it as the length
     formula of [LFS16]): ``l_i = (d_i + d_i^+ + d_i^-) / 3`` with::
@@ -275,11 +286,11 @@ def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
     rules), for uniform intervals.
     """
     _check_choice("lengths", lengths, LENGTH_CHOICES)
-    d = _as_intervals(intervals)
-    n = d.size
+    d = _as_intervals(intervals, batch=True)
+    n = d.shape[-1]
     if lengths == "appendix":
-        dm1, dp1 = np.roll(d, 1), np.roll(d, -1)
-        dm2, dp2 = np.roll(d, 2), np.roll(d, -2)
+        dm1, dp1 = np.roll(d, 1, -1), np.roll(d, -1, -1)
+        dm2, dp2 = np.roll(d, 2, -1), np.roll(d, -2, -1)
         d_minus = (dm2 * dp1 + dp2 * dm1) / (dm1 + dp1)
         return (2.0 * d + d_minus) / 3.0
     i = np.arange(n)
@@ -287,8 +298,8 @@ def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
     dist = np.minimum(k, n - k)
     cos = np.cos(2.0 * math.pi * k / n)
     near = dist <= n / 4.0
-    d_plus = np.where(near, cos, 0.0) @ d
-    d_minus = -np.where(near, 0.0, cos) @ d
+    d_plus = d @ np.where(near, cos, 0.0).T
+    d_minus = -(d @ np.where(near, 0.0, cos).T)
     return (d + d_plus + d_minus) / 3.0
 
 
@@ -298,15 +309,19 @@ def eigen_polyhedron(intervals, angles: str = "standard", lengths: str = "fourie
     ``V^ = (0, 0)``, ``E^_i = l_i (cos phi_i, sin phi_i)`` with ``phi_0 = 0``,
     ``phi_i = theta_0 + ... + theta_{i-1}`` (:func:`eigen_angles`; ``2 pi i / n`` for the
     standard angles), ``F^_i = gamma (E^_i + E^_{i+1})`` (seed 002 Appendix; seed 001 eqs. 12-13).
+    Intervals (g, n) give (g, 2n+1, 2): g vertices at once.
     """
-    d = _as_intervals(intervals)
-    n = d.size
-    theta = eigen_angles(d, angles)
-    phi = np.concatenate([[0.0], np.cumsum(theta)[:-1]])
+    d = _as_intervals(intervals, batch=True)
+    n = d.shape[-1]
+    if angles == "standard":
+        theta = eigen_angles(np.ones(n))
+    else:  # seed 001's case analysis, one vertex at a time
+        theta = np.array([eigen_angles(row, angles) for row in d.reshape(-1, n)]).reshape(d.shape)
+    phi = np.concatenate([np.zeros(theta.shape[:-1] + (1,)), np.cumsum(theta, axis=-1)[..., :-1]], axis=-1)
     ell = spoke_lengths(d, lengths)
-    e = ell[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
-    f = characteristic_scale(n).gamma * (e + np.roll(e, -1, axis=0))
-    return np.concatenate([np.zeros((1, 2)), e, f])
+    e = ell[..., None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    f = characteristic_scale(n).gamma * (e + np.roll(e, -1, axis=-2))
+    return np.concatenate([np.zeros(d.shape[:-1] + (1, 2)), e, f], axis=-2)
 
 
 # --------------------------------------------------------------------------------------------
@@ -314,7 +329,8 @@ def eigen_polyhedron(intervals, angles: str = "standard", lengths: str = "fourie
 
 
 def vertex_rule_weights(intervals) -> np.ndarray:
-    """Weights of the new vertex point on [V, E_0.., F_0..], (2n+1,) float64 (seed 002 eq. 11).
+    """Weights of the new vertex point on [V, E_0.., F_0..], (2n+1,) float64 (seed 002 eq. 11);
+    (g, 2n+1) for intervals (g, n).
 
     ``V' = (n-3)/n V + 3/n sum_i (m_i H_i + f_i G_i) / sum_i (m_i + f_i)`` with
     ``f_i = d_{i-1} d_{i+2}``, ``m_i = f_i + f_{i-1}`` and::
@@ -338,31 +354,32 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     Checks (tests): uniform intervals give Catmull-Clark's ``(n-2)/n V + (sum E + sum F)/n^2``;
     valence 4 gives the tensor product of cubic B-spline vertex rules (knot insertion).
     """
-    d = _as_intervals(intervals)
-    n = d.size
+    d = _as_intervals(intervals, batch=True)
+    n = d.shape[-1]
     terms, mass = spoke_terms(d)
-    w = (3.0 / n) * terms.sum(axis=0) / mass.sum()
-    w[VERTEX] += (n - 3.0) / n
+    w = (3.0 / n) * terms.sum(axis=-2) / mass.sum(axis=-1)[..., None]
+    w[..., VERTEX] += (n - 3.0) / n
     return w
 
 
 def spoke_terms(intervals) -> tuple[np.ndarray, np.ndarray]:
     """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..], (n, 2n+1), and
     ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which seed 000's dart
-    rule (``subdivision_rules``) splits between the two sides of the crease."""
-    d = _as_intervals(intervals)
-    n = d.size
-    dm2, dp2, dm1 = np.roll(d, 2), np.roll(d, -2), np.roll(d, 1)
+    rule (``subdivision_rules``) splits between the two sides of the crease.  Intervals (g, n)
+    give (g, n, 2n+1) and (g, n): g vertices at once."""
+    d = _as_intervals(intervals, batch=True)
+    n = d.shape[-1]
+    dm2, dp2, dm1 = np.roll(d, 2, -1), np.roll(d, -2, -1), np.roll(d, 1, -1)
     g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)
-    gn = np.roll(g, -1)
+    gn = np.roll(g, -1, -1)
     f = dm1 * dp2
-    m = f + np.roll(f, 1)
+    m = f + np.roll(f, 1, -1)
     i = np.arange(n)
-    rows = np.zeros((n, 2 * n + 1))
-    rows[i, VERTEX] = m * (1.0 - g) + f * (1.0 - g) * (1.0 - gn)  # m_i H_i and f_i G_i on V
-    rows[i, 1 + i] = m * g + f * g * (1.0 - gn)  # on E_i
-    rows[i, 1 + (i + 1) % n] = f * (1.0 - g) * gn  # on E_{i+1}
-    rows[i, 1 + n + i] = f * g * gn  # on F_i
+    rows = np.zeros(d.shape + (2 * n + 1,))
+    rows[..., i, VERTEX] = m * (1.0 - g) + f * (1.0 - g) * (1.0 - gn)  # m_i H_i and f_i G_i on V
+    rows[..., i, 1 + i] = m * g + f * g * (1.0 - gn)  # on E_i
+    rows[..., i, 1 + (i + 1) % n] = f * (1.0 - g) * gn  # on E_{i+1}
+    rows[..., i, 1 + n + i] = f * g * gn  # on F_i
     return rows, m + f
 
 
@@ -370,12 +387,27 @@ def spoke_terms(intervals) -> tuple[np.ndarray, np.ndarray]:
 # 3. Face and edge rules: bilinear solves on the eigen-polyhedron
 
 
-def _cross(u, v) -> float:
-    return float(u[0] * v[1] - u[1] * v[0])
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """z component of u x v for (..., 2) arrays."""
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
 
-def _bilinear_roots(p00, p10, p01, p11, x) -> list[tuple[float, float]]:
-    """All real (s, t) with ``(1-s)(1-t) p00 + s(1-t) p10 + (1-s) t p01 + s t p11 = x``.
+class BilinearError(ValueError):
+    """A bilinear rule with no admissible root; ``index`` locates it in the caller's array of
+    problems (a tuple, as ``np.unravel_index``)."""
+
+    def __init__(self, message: str, index: tuple[int, ...]) -> None:
+        super().__init__(message)
+        self.index = index
+
+
+def bilinear_roots(p00, p10, p01, p11, x) -> tuple[np.ndarray, np.ndarray]:
+    """All real (s, t) with ``(1-s)(1-t) p00 + s(1-t) p10 + (1-s) t p01 + s t p11 = x``, for k
+    problems at once.
+
+    p00, p10, p01, p11, x: (k, 2) (or (2,), broadcast).  Returns ``roots`` (k, 2, 2) float64, the
+    two candidate (s, t) of each problem, and ``ok`` (k, 2) bool, which of them are real roots
+    (the others are NaN).
 
     Writing the map as ``p00 + s b + t c + s t e`` and ``r = x - p00``, ``r - t c = s (b + t e)``,
     so ``cross(r - t c, b + t e) = 0``: the quadratic
@@ -383,78 +415,147 @@ def _bilinear_roots(p00, p10, p01, p11, x) -> list[tuple[float, float]]:
     seed 000 eqs. 20-21 and seed 001 write with signed areas, after Floater 2015; their printed
     versions are partly garbled, so it is derived here afresh).  The roots are taken in the
     cancellation-free form, ``s`` from the larger component of ``b + t e``, and each pair is
-    polished by two Newton steps on the 2x2 system.
+    polished by two Newton steps on the 2x2 system.  A root whose iso-line ``b + t e``
+    collapses to a point (``s`` undetermined) is dropped: the other root then finds ``x`` too.
     """
-    p00, p10, p01, p11, x = (np.asarray(p, dtype=np.float64) for p in (p00, p10, p01, p11, x))
+    p00, p10, p01, p11, x = np.broadcast_arrays(
+        *(np.atleast_2d(np.asarray(p, dtype=np.float64)) for p in (p00, p10, p01, p11, x))
+    )
     b, c, e, r = p10 - p00, p01 - p00, p00 - p10 - p01 + p11, x - p00
     qa, qb, qc = -_cross(c, e), _cross(r, e) - _cross(c, b), _cross(r, b)
-    ts: list[float] = []
     disc = qb * qb - 4.0 * qa * qc
-    if disc < 0.0:
-        # Complex pair; a tiny negative value is round-off of a double root.
-        if disc < -1e-24 * (qb * qb + abs(4.0 * qa * qc)):
-            return []
-        disc = 0.0
-    q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
-    if q != 0.0:
-        ts.append(qc / q)
-    if qa != 0.0:
-        ts.append(q / qa)
-    if not ts and qc == 0.0:
-        ts.append(0.0)
-    size = max(np.abs(b).max(), np.abs(c).max(), np.abs(e).max(), np.abs(r).max())
-    out = []
-    for t in ts:
-        den = b + t * e
-        k = int(np.argmax(np.abs(den)))
-        if not np.isfinite(t) or abs(den[k]) <= 1e-12 * size:
-            # b + t e = 0: the iso-line t collapses to a point, s is undetermined; it is a
-            # solution only if that point is x, which the other root then also finds.
-            continue
-        s = (r[k] - t * c[k]) / den[k]
-        for _ in range(2):  # Newton polish
-            res = p00 + s * b + t * c + s * t * e - x
-            jac = np.column_stack([b + t * e, c + s * e])
-            try:
-                step = np.linalg.solve(jac, res)
-            except np.linalg.LinAlgError:
-                break
-            s, t = s - step[0], t - step[1]
-        res = p00 + s * b + t * c + s * t * e - x
-        if np.abs(res).max() <= 1e-10 * size * (1.0 + abs(s) + abs(t) + abs(s * t)):
-            out.append((float(s), float(t)))
-    return out
+    # A complex pair; a tiny negative value is round-off of a double root.
+    real = disc >= -1e-24 * (qb * qb + np.abs(4.0 * qa * qc))
+    q = -0.5 * (qb + np.copysign(np.sqrt(np.maximum(disc, 0.0)), qb))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.stack([np.where(q != 0.0, qc / np.where(q != 0.0, q, 1.0), np.nan),
+                      np.where(qa != 0.0, q / np.where(qa != 0.0, qa, 1.0), np.nan)], axis=1)
+    # q = qa = 0: linear with no t term; a root (t = 0) only if qc = 0 too
+    t[:, 0] = np.where((q == 0.0) & (qa == 0.0) & (qc == 0.0), 0.0, t[:, 0])
+    t[~real] = np.nan
+    size = np.max(np.abs(np.stack([b, c, e, r], axis=1)), axis=(1, 2))[:, None]  # (k, 1)
+    B, C, E, R = (a[:, None, :] for a in (b, c, e, r))  # (k, 1, 2) against (k, 2) candidates
+    den = B + t[..., None] * E
+    k = np.argmax(np.abs(den), axis=-1)[..., None]
+    den_k = np.take_along_axis(den, k, -1)[..., 0]
+    ok = np.isfinite(t) & (np.abs(den_k) > 1e-12 * size)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (np.take_along_axis(R, k, -1)[..., 0] - t * np.take_along_axis(C, k, -1)[..., 0]) / den_k
+        for _ in range(2):  # Newton polish; a singular Jacobian leaves the pair as it is
+            res = R - s[..., None] * B - t[..., None] * C - (s * t)[..., None] * E  # x - map
+            j1, j2 = B + t[..., None] * E, C + s[..., None] * E
+            det = _cross(j1, j2)
+            step = det != 0.0
+            det = np.where(step, det, 1.0)
+            s = np.where(step & ok, s + _cross(res, j2) / det, s)
+            t = np.where(step & ok, t + _cross(j1, res) / det, t)
+        res = R - s[..., None] * B - t[..., None] * C - (s * t)[..., None] * E
+        ok &= np.max(np.abs(res), axis=-1) <= 1e-10 * size * (1.0 + np.abs(s) + np.abs(t) + np.abs(s * t))
+    roots = np.stack([np.where(ok, s, np.nan), np.where(ok, t, np.nan)], axis=-1)
+    return roots, ok
 
 
-def _bilinear_inverse(p00, p10, p01, p11, x, where: str) -> tuple[float, float]:
-    """The solution (s, t) of the bilinear equation on the branch through the unit square.
+def bilinear_inverse(p00, p10, p01, p11, x, what: str = "rule", labels=None) -> np.ndarray:
+    """The solutions (s, t) of k bilinear equations on the branch through the unit square.
 
-    The quadratic of :func:`_bilinear_roots` has at most two real roots.  For a convex quad and
-    ``x`` inside it exactly one lies in ``[0, 1]^2`` (the rule is then a convex combination, as
-    in the uniform and the valence-4 cases).  For large interval ratios the target point of
-    the eigen-polyhedron can leave the quad slightly (seen for the edge rule: the coefficient
-    along the spoke becomes a little negative); the seeds call the solution "unique" without
-    restricting its range, so the root nearest to the unit square is taken: it is the branch
-    that continues the in-square solution, the other root lies far away (|s| or |t| ~ 3 to
-    100 in the cases seen).  Raises if no real root exists or if both roots lie in the square.
+    Arguments as :func:`bilinear_roots`; returns (k, 2) float64.  ``what`` and ``labels`` (k,)
+    name the problems in errors ("eigen-polyhedron face 3: ...").
+
+    The quadratic has at most two real roots.  For a convex quad and ``x`` inside it exactly one
+    lies in ``[0, 1]^2`` (the rule is then a convex combination, as in the uniform and the
+    valence-4 cases).  For large interval ratios the target point of the eigen-polyhedron can
+    leave the quad slightly (seen for the edge rule: the coefficient along the spoke becomes a
+    little negative); the seeds call the solution "unique" without restricting its range, so
+    the root nearest to the unit square is taken: it is the branch that continues the
+    in-square solution, the other root lies far away (|s| or |t| ~ 3 to 100 in the cases
+    seen).  Raises ValueError (the first failing problem) if no real root exists or if both
+    roots lie in the square (the quad folds over).
     """
-    roots = _bilinear_roots(p00, p10, p01, p11, x)
-    if not roots:
-        raise ValueError(f"eigen-polyhedron {where}: the bilinear equation has no real solution")
+    roots, ok = bilinear_roots(p00, p10, p01, p11, x)
+    out_s = np.maximum(np.maximum(-roots[..., 0], roots[..., 0] - 1.0), 0.0)
+    out_t = np.maximum(np.maximum(-roots[..., 1], roots[..., 1] - 1.0), 0.0)
+    dist = np.where(ok, np.hypot(out_s, out_t), np.inf)
+    first = np.argmin(dist, axis=1)  # ties: the first candidate, qc / q
+    rows = np.arange(first.size)
+    best, other = dist[rows, first], dist[rows, 1 - first]
+    bad = np.flatnonzero(~np.isfinite(best) | (other <= _RANGE_SLACK))
+    if bad.size:
+        i = int(bad[0])
+        label = i if labels is None else labels[i]
+        if not np.isfinite(best[i]):
+            message = "the bilinear equation has no real solution"
+        else:
+            message = (f"two solutions of the bilinear equation in [0, 1]^2 ({roots[i].tolist()}): "
+                       f"the quad of the rule folds over")
+        raise BilinearError(f"eigen-polyhedron {what} {label}: {message}", (i,))
+    st = roots[rows, first]
+    inside = best <= _RANGE_SLACK  # clip round-off only
+    return np.where(inside[:, None], np.clip(st, 0.0, 1.0), st)
 
-    def distance(st):
-        return math.hypot(max(-st[0], 0.0, st[0] - 1.0), max(-st[1], 0.0, st[1] - 1.0))
 
-    roots.sort(key=distance)
-    if len(roots) == 2 and distance(roots[1]) <= _RANGE_SLACK:
-        raise ValueError(
-            f"eigen-polyhedron {where}: two solutions of the bilinear equation in [0, 1]^2 "
-            f"({roots}): the quad of the rule folds over"
-        )
-    s, t = roots[0]
-    if distance(roots[0]) <= _RANGE_SLACK:  # clip round-off only
-        s, t = min(max(s, 0.0), 1.0), min(max(t, 0.0), 1.0)
-    return s, t
+def bilinear_rule(corners: np.ndarray, polyhedron: np.ndarray, target: np.ndarray,
+                  what: str = "rule", labels=None) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of bilinear rules ``(1-s)(1-t) q_0 + s (1-t) q_1 + (1-s) t q_2 + s t q_3`` whose
+    (s, t) put the refined eigen-polyhedron point at ``target`` (seed 000 eqs. 18-21 for face
+    points, 23-28 for edge points; seed 002 eq. 12 and the Appendix's edge rule).
+
+    corners: (..., 4, size), the q's as weights on the local points; polyhedron: (..., size, 2),
+    the eigen-polyhedron (or a frame of it) of each rule; target: (..., 2); leading axes
+    broadcast (e.g. (g, k): k rules of each of g vertices).  Returns (rows (..., size),
+    st (..., 2)), all rules in one vectorised solve (:func:`bilinear_inverse`).  labels (k,)
+    names the last axis in errors; a BilinearError's ``index`` locates the failing rule.
+    """
+    q = np.einsum("...js,...sd->...jd", corners, polyhedron)
+    shape = np.broadcast_shapes(q.shape[:-2], np.shape(target)[:-1])
+    q = np.broadcast_to(q, shape + (4, 2)).reshape(-1, 4, 2)
+    x = np.broadcast_to(target, shape + (2,)).reshape(-1, 2)
+    last = np.arange(x.shape[0]) % shape[-1] if shape else np.zeros(x.shape[0], np.int64)
+    names = last if labels is None else np.asarray(labels)[last]
+    try:
+        st = bilinear_inverse(q[:, 0], q[:, 1], q[:, 2], q[:, 3], x, what, names)
+    except BilinearError as exc:
+        exc.index = tuple(int(j) for j in np.unravel_index(exc.index[0], shape))
+        raise
+    st = st.reshape(shape + (2,))
+    s, t = st[..., 0], st[..., 1]
+    w = np.stack([(1 - s) * (1 - t), s * (1 - t), (1 - s) * t, s * t], axis=-1)
+    return np.einsum("...j,...js->...s", w, corners), st
+
+
+def face_corners(size: int, e0: np.ndarray, e1: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Corners (V, E_i, E_{i+1}, F_i) of face rules as (k, 4, size) weights; e0, e1, f: (k,)
+    local indices of ``E_i``, ``E_{i+1}``, ``F_i`` (V is local point 0)."""
+    k = np.arange(f.size)
+    w = np.zeros((f.size, 4, size))
+    w[k, 0, VERTEX] = 1.0
+    w[k, 1, e0] = 1.0
+    w[k, 2, e1] = 1.0
+    w[k, 3, f] = 1.0
+    return w
+
+
+def edge_corners(size: int, e: np.ndarray, e_prev: np.ndarray, e_next: np.ndarray,
+                 f_prev: np.ndarray, f_next: np.ndarray, a_prev: np.ndarray,
+                 a_next: np.ndarray) -> np.ndarray:
+    """Corners of the edge rules of spokes ``E_i`` as (..., k, 4, size) weights (seed 002
+    Appendix, seed 000 eqs. 23-28): ``q_1 = (P_{i,1} + V)/2``, ``q_2 = (P_{i,2} + V)/2``,
+    ``q_3 = (P_{i,3} + E_i)/2``, ``q_4 = (P_{i,4} + E_i)/2`` with the solved face coefficients
+    of the two faces beside the spoke: ``P_{i,1} = (1-a) V + a E_{i-1}``, ``P_{i,3} = (1-a) E_i
+    + a F_{i-1}`` (``a = a_prev``, face i-1's weight towards E_{i-1}), ``P_{i,2} = (1-a') V + a'
+    E_{i+1}``, ``P_{i,4} = (1-a') E_i + a' F_i`` (``a' = a_next``, face i's towards E_{i+1}).
+    Index arrays (k,): local indices; a_prev, a_next: (..., k)."""
+    k = np.arange(e.size)
+    hp, hn = 0.5 * np.asarray(a_prev), 0.5 * np.asarray(a_next)
+    w = np.zeros(hp.shape + (4, size))
+    w[..., k, 0, VERTEX] = 1.0 - hp
+    w[..., k, 0, e_prev] = hp
+    w[..., k, 1, VERTEX] = 1.0 - hn
+    w[..., k, 1, e_next] = hn
+    w[..., k, 2, e] = 1.0 - hp
+    w[..., k, 2, f_prev] = hp
+    w[..., k, 3, e] = 1.0 - hn
+    w[..., k, 3, f_next] = hn
+    return w
 
 
 class RuleCoefficients(NamedTuple):
@@ -472,61 +573,55 @@ class RuleCoefficients(NamedTuple):
     lam: float
 
 
-def _unit(size: int, index: int) -> np.ndarray:
-    w = np.zeros(size)
-    w[index] = 1.0
-    return w
+def _solve_batch(d: np.ndarray, angles: str, lengths: str):
+    """The local matrices of g vertices of one valence at once: d (g, n) -> (mat (g, size,
+    size), P^0 (g, size, 2), alpha (g, n, 2), beta (g, n, 2), T (g, 2)).  Raises BilinearError
+    whose ``index[0]`` is the failing vertex."""
+    g, n = d.shape
+    size = 2 * n + 1
+    lam = characteristic_scale(n).lam
+    p0 = eigen_polyhedron(d, angles, lengths)
+    mat = np.zeros((g, size, size))
+    mat[:, VERTEX] = vertex_rule_weights(d)
+    t_vec = np.einsum("gs,gsd->gd", mat[:, VERTEX], p0)  # T = V^1 (V^0 = 0)
+    i = np.arange(n)
+    e, e_next, e_prev = 1 + i, 1 + (i + 1) % n, 1 + (i - 1) % n
+    f, f_prev = 1 + n + i, 1 + n + (i - 1) % n
+    poly = p0[:, None]  # (g, 1, size, 2): one polyhedron for all rules of a vertex
+
+    # Face points, seed 002 eq. (12): bilinear in (alpha_1 -> E_i, alpha_2 -> E_{i+1}) with
+    # target V^1 + lambda F^_i.
+    mat[:, f], alpha = bilinear_rule(
+        face_corners(size, e, e_next, f), poly, t_vec[:, None] + lam * p0[:, f], "face"
+    )
+
+    # Edge points, seed 002 Appendix (seed 000 eqs. 23-28): bilinear in (beta_1 across,
+    # beta_2 along) on the quad of (P_{i,1}+V)/2, (P_{i,2}+V)/2, (P_{i,3}+E_i)/2, (P_{i,4}+E_i)/2.
+    corners = edge_corners(size, e, e_prev, e_next, f_prev, f, alpha[:, (i - 1) % n, 0], alpha[:, i, 1])
+    mat[:, e], beta = bilinear_rule(corners, poly, t_vec[:, None] + lam * p0[:, e], "edge")
+    return mat, p0, alpha, beta, t_vec
 
 
 @functools.lru_cache(maxsize=4096)
 def _solve(key: tuple[float, ...], angles: str, lengths: str):
-    d = np.array(key)
-    n = d.size
-    size = 2 * n + 1
-    lam = characteristic_scale(n).lam
-    p0 = eigen_polyhedron(d, angles, lengths)
-    mat = np.zeros((size, size))
-    mat[VERTEX] = vertex_rule_weights(d)
-    t_vec = mat[VERTEX] @ p0  # T = V^1 (V^0 = 0)
-    V = VERTEX
-    E = [edge_index(n, i) for i in range(n)]
-    F = [face_index(n, i) for i in range(n)]
-
-    # Face points, seed 002 eq. (12): bilinear in (alpha_1 -> E_i, alpha_2 -> E_{i+1}) with
-    # target V^1 + lambda F^_i.
-    alpha = np.zeros((n, 2))
-    for i in range(n):
-        j = (i + 1) % n
-        a1, a2 = _bilinear_inverse(
-            p0[V], p0[E[i]], p0[E[j]], p0[F[i]], t_vec + lam * p0[F[i]], f"face {i}"
-        )
-        alpha[i] = a1, a2
-        mat[F[i], V] = (1 - a1) * (1 - a2)
-        mat[F[i], E[i]] = a1 * (1 - a2)
-        mat[F[i], E[j]] = (1 - a1) * a2
-        mat[F[i], F[i]] = a1 * a2
-
-    # Edge points, seed 002 Appendix (seed 000 eqs. 23-28): bilinear in (beta_1 across,
-    # beta_2 along) on the quad of (P_{i,1}+V)/2, (P_{i,2}+V)/2, (P_{i,3}+E_i)/2, (P_{i,4}+E_i)/2.
-    beta = np.zeros((n, 2))
-    for i in range(n):
-        h, j = (i - 1) % n, (i + 1) % n
-        ah, ai = alpha[h, 0], alpha[i, 1]
-        p1 = (1 - ah) * _unit(size, V) + ah * _unit(size, E[h])
-        p2 = (1 - ai) * _unit(size, V) + ai * _unit(size, E[j])
-        p3 = (1 - ah) * _unit(size, E[i]) + ah * _unit(size, F[h])
-        p4 = (1 - ai) * _unit(size, E[i]) + ai * _unit(size, F[i])
-        q1 = 0.5 * (p1 + _unit(size, V))
-        q2 = 0.5 * (p2 + _unit(size, V))
-        q3 = 0.5 * (p3 + _unit(size, E[i]))
-        q4 = 0.5 * (p4 + _unit(size, E[i]))
-        b1, b2 = _bilinear_inverse(
-            q1 @ p0, q2 @ p0, q3 @ p0, q4 @ p0, t_vec + lam * p0[E[i]], f"edge {i}"
-        )
-        beta[i] = b1, b2
-        mat[E[i]] = (1 - b1) * ((1 - b2) * q1 + b2 * q3) + b1 * ((1 - b2) * q2 + b2 * q4)
-    coeffs = RuleCoefficients(_frozen(alpha), _frozen(beta), _frozen(t_vec), lam)
+    mat, p0, alpha, beta, t_vec = (a[0] for a in _solve_batch(np.array(key)[None], angles, lengths))
+    coeffs = RuleCoefficients(_frozen(alpha), _frozen(beta), _frozen(t_vec), characteristic_scale(len(key)).lam)
     return _frozen(mat), _frozen(p0), coeffs
+
+
+def local_subdivision_matrices(
+    intervals, angles: str = "standard", lengths: str = "fourier"
+) -> np.ndarray:
+    """:func:`local_subdivision_matrix` of g vertices of one valence at once, uncached.
+
+    intervals: (g, n).  Returns (g, 2n+1, 2n+1) float64.  Every bilinear solve of every vertex
+    in one vectorised call; raises BilinearError (a ValueError) whose ``index[0]`` is the
+    vertex whose rule is undefined.  Intervals are scaled to maximum 1 per vertex (the cached
+    single-vertex function also rounds them to 14 digits: the two agree to that)."""
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    d = _as_intervals(intervals, batch=True).reshape(-1, np.shape(intervals)[-1])
+    return _solve_batch(d / d.max(axis=1, keepdims=True), angles, lengths)[0]
 
 
 def local_subdivision_matrix(
@@ -547,8 +642,8 @@ def local_subdivision_matrix(
     ``V^1 + lambda F^_i = (same bilinear form on the eigen-polyhedron)``; edge ``i``: seed 002's
     edge rule with ``P_{i,1..4}`` built from the neighbouring faces' ``alpha`` and ``(b1, b2)``
     solving ``V^1 + lambda E^_i = ...``.  Both solves are closed-form quadratics
-    (:func:`_bilinear_roots`); the root on the branch through the unit square is used
-    (:func:`_bilinear_inverse`), so for large interval ratios a few weights can be slightly
+    (:func:`bilinear_roots`); the root on the branch through the unit square is used
+    (:func:`bilinear_inverse`), so for large interval ratios a few weights can be slightly
     negative (the rule is then not a convex combination; :func:`rule_coefficients` shows it).
     Cached by (valence, intervals scaled to max 1 and rounded to 14 digits, options).
     """

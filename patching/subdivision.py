@@ -69,7 +69,7 @@ Choices where the seeds are silent, written once:
   which is consistent (strips) only if ``d(h_{i-1}) = d(h_{i+1})`` around the face (all equal
   for odd faces, alternating for even ones): otherwise UnsupportedError.
 * Non-uniform intervals at tagged vertices (seed 000 section 4): the generalised
-  eigen-polyhedron rules (``subdivision_rules.tagged_vertex_rules``) give the face points
+  eigen-polyhedron rules (``subdivision_rules.tagged_rules_batch``) give the face points
   around the vertex, the edge points of its untagged spokes and a dart's vertex point; crease
   edges and crease/corner vertices follow the non-uniform crease curve.  Where a tagged
   vertex's spoke intervals are all equal, section 2's BLZ rule is kept instead (on top of knot
@@ -105,7 +105,7 @@ from .subdivision_rules import (
     curve_edge_weights,
     curve_limit_weights,
     curve_vertex_weights,
-    tagged_vertex_rules,
+    tagged_rules_batch,
 )
 from .topology import Topology
 
@@ -479,93 +479,115 @@ def _crease_vertex_rows(ctx: _Context, rows: _Rows, lev: _Level, v: np.ndarray, 
 # Extraordinary points (non-uniform): eigen-polyhedron rules
 
 
-def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str):
-    """Rows of the [LFS16] local matrix around every untagged EP: {row: (cols, weights)} lists,
-    averaged where two EPs claim one row."""
+class _Claims:
+    """Rows of S claimed by local solves (EPs, tagged vertices), as blocks of a local matrix:
+    a row claimed by k solves gets the mean of the k claims."""
+
+    def __init__(self, n_out: int) -> None:
+        self.n_out = n_out
+        self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def add(self, rows: np.ndarray, cols: np.ndarray, weights: np.ndarray) -> None:
+        """rows (k,) row ids of S, cols (k, c) column ids, weights (k, c)."""
+        self.blocks.append((rows, cols, weights))
+
+    @cached_property
+    def count(self) -> np.ndarray:
+        """(n_out,) number of claims of every row of S."""
+        rows = [b[0] for b in self.blocks]
+        return np.bincount(np.concatenate(rows), minlength=self.n_out) if rows else np.zeros(self.n_out, np.int64)
+
+    def emit(self, out: _Rows) -> None:
+        for rows, cols, weights in self.blocks:
+            out.add(rows[:, None], cols, weights / self.count[rows][:, None])
+
+
+def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str, claims: _Claims) -> None:
+    """Rows of the [LFS16] local matrix around every untagged EP, the EPs of one valence in one
+    vectorised solve (``eigen_polyhedron.local_subdivision_matrices``)."""
     from . import eigen_polyhedron as eig
 
-    claims: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for v in eps.tolist():
-        ring = ctx.topo.one_ring(v)
-        n = ring.size
+    for n in np.unique(ctx.valence[eps]).tolist():
+        v = eps[ctx.valence[eps] == n]
+        ring = np.stack([ctx.topo.one_ring(x) for x in v.tolist()])  # (g, n) spokes
         d = ctx.d_h[ring]
         try:
-            m = eig.local_subdivision_matrix(d, angles=angles)
+            m = eig.local_subdivision_matrices(d, angles=angles)
         except ValueError as exc:
+            k = exc.index[0] if isinstance(exc, eig.BilinearError) else 0
             raise UnsupportedError(
-                f"eigen-polyhedron rule undefined at extraordinary vertex {v} (valence {n}, "
-                f"spoke intervals {d.tolist()}): {exc}",
-                ctx.mesh.where("vertex", v),
+                f"eigen-polyhedron rule undefined at extraordinary vertex {v[k]} (valence {n}, "
+                f"spoke intervals {d[k].tolist()}): {exc}",
+                ctx.mesh.where("vertex", int(v[k])),
             ) from None
-        cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
-        targets = np.concatenate(
-            [[ctx.nf + ctx.ne + v], ctx.nf + ctx.eoh[ring], ctx.face[ring]]
-        )
-        for i, row in enumerate(targets.tolist()):
-            claims.setdefault(row, []).append((cols, m[i]))
-    return claims
+        cols = np.concatenate([v[:, None], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]], axis=1)
+        targets = np.concatenate([ctx.nf + ctx.ne + v[:, None], ctx.nf + ctx.eoh[ring], ctx.face[ring]], axis=1)
+        claims.add(targets.ravel(), np.repeat(cols, 2 * n + 1, axis=0), m.reshape(-1, 2 * n + 1))
 
 
-def _tagged_rows(ctx: _Context, angles: str, claims: dict) -> None:
+def _tagged_rows(ctx: _Context, claims: _Claims) -> None:
     """Seed 000 section 4 at tagged vertices (non-uniform): the generalised eigen-polyhedron
-    rules of ``subdivision_rules.tagged_vertex_rules`` claim the face points around the vertex,
-    the edge points of its untagged spokes and (dart) its vertex point.  Not used, so that the
-    BLZ rules of section 2 apply there (on top of knot insertion): a vertex whose spoke
-    intervals are all equal (section 4 with equal intervals is not section 2 for theta != pi/2,
-    see the report in ``tagged_vertex_rules``' tests; a dart of valence != 4 still takes its
-    vertex row, which is Catmull-Clark's then), a crease sector of one face (theta = pi, a
-    degenerate polyhedron), and vertices next to a non-quad face."""
+    rules of ``subdivision_rules.tagged_rules_batch`` claim the face points around the vertex,
+    the edge points of its untagged spokes and (dart) its vertex point; vertices of one kind
+    and shape are solved together.  Not used, so that the BLZ rules of section 2 apply there
+    (on top of knot insertion): a vertex whose spoke intervals are all equal (section 4 with
+    equal intervals is not section 2 for theta != pi/2, see the report in
+    ``tagged_vertex_rules``' tests; a dart of valence != 4 still takes its vertex row, which is
+    Catmull-Clark's then), a crease sector of one face (theta = pi, a degenerate polyhedron),
+    and vertices next to a non-quad face."""
+    from .eigen_polyhedron import BilinearError
+
     lev = ctx.parent
     cand = np.flatnonzero((lev.rule != SMOOTH) & ~ctx.v_nonquad & ctx.topo.vertex_is_used)
+    groups: dict[tuple, list] = {}
     for v in cand.tolist():
         kind = int(lev.rule[v])
         ring = ctx.topo.one_ring(v)
         boundary = bool(ctx.v_boundary[v])
         f = ring.size
-        spoke_edges = list(ctx.eoh[ring])
-        ends = list(ctx.dest[ring])
+        spoke_edges = ctx.eoh[ring]
+        ends = ctx.dest[ring]
         if boundary:
             last = ctx.prv[ring[-1]]
-            spoke_edges.append(ctx.eoh[last])
-            ends.append(ctx.origin[last])
-        n = len(spoke_edges)
-        sharp = [i for i, e in enumerate(spoke_edges) if lev.sharp[e]]
-        if not boundary and sharp:  # rotate: a sharp spoke first
-            k = sharp[0]
-            ring = np.roll(ring, -k)
-            spoke_edges = spoke_edges[k:] + spoke_edges[:k]
-            ends = ends[k:] + ends[:k]
-            sharp = [(i - k) % n for i in sharp]
-        d = ctx.d_e[np.array(spoke_edges)]
+            spoke_edges = np.append(spoke_edges, ctx.eoh[last])
+            ends = np.append(ends, ctx.origin[last])
+        n = spoke_edges.size
+        sharp = np.flatnonzero(lev.sharp[spoke_edges])
+        if not boundary and sharp.size:  # rotate: a sharp spoke first
+            k = int(sharp[0])
+            ring, spoke_edges, ends = np.roll(ring, -k), np.roll(spoke_edges, -k), np.roll(ends, -k)
+            sharp = sharp - k
+        d = ctx.d_e[spoke_edges]
         equal = bool(np.all(np.abs(d - d[0]) <= 1e-12 * d.max()))
         if kind == CREASE:
-            cuts = sorted(sharp)
-            sizes = np.diff(cuts + [cuts[0] + n]) if not boundary else [f]
+            sizes = np.diff(np.append(sharp, sharp[0] + n)) if not boundary else [f]
             if min(sizes) == 1:
                 continue
         if equal and not (kind == DART and n != 4):
             continue
         if d.min() <= 0.0:  # a zero interval (multiple knot): no polyhedron; knot insertion
             continue
-        key = tuple(float(f"{x:.12g}") for x in d / d.max())
-        try:
-            m, defined, _, _ = tagged_vertex_rules(kind, key, tuple(sorted(sharp)), boundary)
-        except ValueError as exc:
+        cols = np.concatenate([[v], ends, ctx.dest[ctx.nxt[ring]]])
+        targets = np.concatenate([[ctx.nf + ctx.ne + v], ctx.nf + spoke_edges, ctx.face[ring]])
+        key = (kind, n, tuple(sharp.tolist()), boundary)
+        groups.setdefault(key, []).append((v, d, cols, targets, equal))
+    for (kind, n, sharp, boundary), members in groups.items():
+        d = np.array([mm[1] for mm in members])
+        try:  # every rule is invariant under d -> s d: scaled to maximum 1
+            m, defined, _, _ = tagged_rules_batch(kind, d / d.max(axis=1, keepdims=True), sharp, boundary)
+        except BilinearError as exc:
+            v, dv = members[exc.index[0]][:2]
             raise UnsupportedError(
                 f"seed 000's eigen-polyhedron rule undefined at tagged vertex {v} (valence {n}, "
-                f"spoke intervals {d.tolist()}): {exc}",
+                f"spoke intervals {dv.tolist()}): {exc}",
                 ctx.mesh.where("vertex", v),
             ) from None
-        if equal:  # dart of valence != 4 with equal spokes: only its vertex row
-            defined = np.zeros_like(defined)
-            defined[0] = True
-        faces_pts = ctx.dest[ctx.nxt[ring]]
-        cols = np.concatenate([[v], np.array(ends, np.int64), faces_pts])
-        targets = np.concatenate(
-            [[ctx.nf + ctx.ne + v], ctx.nf + np.array(spoke_edges, np.int64), ctx.face[ring]]
-        )
-        for i in np.flatnonzero(defined).tolist():
-            claims.setdefault(int(targets[i]), []).append((cols, m[i]))
+        cols = np.array([mm[2] for mm in members])
+        targets = np.array([mm[3] for mm in members])
+        # a dart of valence != 4 with equal spokes: only its vertex row
+        use = np.where(np.array([mm[4] for mm in members])[:, None], np.arange(defined.size) == 0, defined)
+        gi, ri = np.nonzero(use)
+        claims.add(targets[gi, ri], cols[gi], m[gi, ri])
 
 
 # ------------------------------------------------------------------------------------------
@@ -600,18 +622,16 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     n_out = ctx.nf + ctx.ne + ctx.nv
 
     # Extraordinary points handled by the eigen-polyhedron (non-uniform only).
-    ep_claims: dict = {}
+    claims = _Claims(n_out)
     if nonuniform:
         _check_nonuniform_support(ctx, seed)
         eps = np.flatnonzero(
             ~ctx.v_boundary & (ctx.valence != 4) & (par.rule == SMOOTH) & ctx.topo.vertex_is_used
         )
-        ep_claims = _ep_rows(ctx, eps, angles) if eps.size else {}
+        _ep_rows(ctx, eps, angles, claims)
         if seed:
-            _tagged_rows(ctx, angles, ep_claims)
-    claimed = np.zeros(n_out, bool)
-    if ep_claims:
-        claimed[np.fromiter(ep_claims.keys(), np.int64)] = True
+            _tagged_rows(ctx, claims)
+    claimed = claims.count > 0
 
     # Face points.
     _face_rows(ctx, rows, ~claimed[: ctx.nf])
@@ -673,10 +693,7 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     rows.add(ctx.nf + ctx.ne + iso, iso, 1.0)
 
     # EP and tagged-vertex rows (mean of the claims).
-    for row, claims in ep_claims.items():
-        k = len(claims)
-        for cols, wts in claims:
-            rows.add(np.full(cols.size, row), cols, wts / k)
+    claims.emit(rows)
     return rows.matrix((n_out, ctx.nv))
 
 

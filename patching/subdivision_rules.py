@@ -34,6 +34,7 @@ __all__ = [
     "curve_limit_weights",
     "curve_derivative_weights",
     "tagged_vertex_rules",
+    "tagged_rules_batch",
     "SMOOTH",
     "DART",
     "CREASE",
@@ -133,139 +134,133 @@ class TaggedRules(NamedTuple):
 
 
 @functools.lru_cache(maxsize=4096)
-def tagged_vertex_rules(kind: int, intervals: tuple, sharp: tuple, boundary: bool):
-    """Local rules around a tagged vertex from seed 000's generalised eigen-polyhedron.
+def tagged_vertex_rules(kind: int, intervals: tuple, sharp: tuple, boundary: bool) -> TaggedRules:
+    """Local rules around one tagged vertex (:func:`tagged_rules_batch` for one vertex, cached
+    by its arguments); arrays read-only."""
+    rules = tagged_rules_batch(kind, np.array(intervals, dtype=np.float64)[None], sharp, boundary)
+    out = TaggedRules(rules.matrix[0], rules.defined, rules.polyhedron[0], rules.translation[0])
+    for a in out:
+        a.flags.writeable = False
+    return out
 
-    kind: DART, CREASE or CORNER.  intervals: spoke intervals d_0..d_{n-1} (rotation order;
-    for an interior dart or crease, spoke 0 is a sharp spoke).  sharp: indices of the sharp
-    spokes.  boundary: spokes 0 and n-1 are the boundary edges and there are n-1 faces.
-    Local points [V, E_0..E_{n-1}, F_0..F_{nf-1}], face i = (V, E_i, F_i, E_{i+1}).
-    Returns TaggedRules (M, defined, P^0, T): M (size, size) float64, rows of the new points;
-    defined (size,) bool:
-    every face row, the rows of untagged spokes, and the vertex row of a dart.  The crease and
-    corner vertex rows and the crease edges are the curve rules (``subdivision``), not here.
 
-    Construction (seed 000 sections 4.1-4.3): ``V^ = 0``; ``E^_i = l_i (cos phi_i, sin phi_i)``
-    with l_i of eq. (5) (``eigen_polyhedron.spoke_lengths(d, "fourier")``; ``l = d`` for two
-    spokes) and angles per sector: dart ``2 pi / n``; crease ``pi / n_1`` and ``pi / n_2``;
-    corner ``alpha_q / n_q`` with the sector's topological angle (``pi/2`` a quad, see
-    ``subdivision``); ``F^_i = E^_i + E^_{i+1}``; ``lambda = 1/2``; ``T = V^1`` from the vertex
-    rule: dart eq. (9)-(10) (the two half-sums weighted with mu = y_2 / (y_2 - y_1) so that
-    ``T`` lies on the sharp spoke), crease eq. (14), corner 0.  Face rows: the bilinear form
-    (18) solved for ``F^1 = F^0/2 + T`` (eqs. 19-21; solved by
-    ``eigen_polyhedron._bilinear_inverse``, the same closed form).  Untagged edge rows: eqs.
-    (23)-(28), the bilinear form on ``(P_{i,k} + V or E_i)/2`` solved for ``E^1 = E^0/2 + T``.
-    Reconstruction: eq. (7)'s ``f_i`` is printed as a garbled product; ``d_{i-1} d_{i+2}`` as
-    in seed 002 (and ``eigen_polyhedron``).  Check (tests): equal intervals give the BLZ rules
-    (centroid faces, ``gamma = 3/8 - cos(theta)/4`` edges, Catmull-Clark darts).
-    """
-    from . import eigen_polyhedron as eig
-
-    d = np.array(intervals, dtype=np.float64)
-    n = d.size
+@functools.lru_cache(maxsize=256)
+def _frames(kind: int, n: int, sharp: tuple, boundary: bool):
+    """Spoke angles of the generalised eigen-polyhedron, per frame: (phi (frames, n), face_frame
+    (nf,), spoke_frame (n,)), from topology only.  Dart and crease: one frame (their sectors
+    add up to 2 pi, or pi on a boundary).  Corner: "we deal with each sector separately" (seed
+    000 section 4.1): one frame per sector, so that sectors whose angles do not add up to 2 pi
+    do not overlap; a face or an untagged spoke lies inside one sector and uses its frame."""
     nf = n - 1 if boundary else n
-    size = 1 + n + nf
-    ell = eig.spoke_lengths(d, "fourier") if n >= 3 else d.copy()
-    sharp = sorted(sharp)
-    # Spoke angles phi_i, per frame.  Dart and crease: one frame (their sectors add up to
-    # 2 pi, or pi on a boundary).  Corner: "we deal with each sector separately" (seed 000
-    # section 4.1): one frame per sector, so that sectors whose angles do not add up to 2 pi
-    # do not overlap; a face or an untagged spoke lies inside one sector and uses its frame.
-    def polyhedron(phi):
-        e = ell[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=1)
-        f = np.array([e[i] + e[(i + 1) % n] for i in range(nf)]).reshape(nf, 2)
-        return np.concatenate([np.zeros((1, 2)), e, f])
-
     face_frame = np.zeros(nf, np.int64)
     spoke_frame = np.zeros(n, np.int64)
     if kind == DART:
-        frames = [polyhedron(2 * math.pi * np.arange(n) / n)]
-    else:
-        cuts = sharp if sharp else [0]
-        bounds = []
-        for q, s0 in enumerate(cuts):
-            s1 = cuts[q + 1] if q + 1 < len(cuts) else (cuts[0] + n if not boundary else n - 1)
-            if s1 > s0:
-                bounds.append((s0, s1))
-        if kind == CREASE:
-            theta = np.empty(nf)
-            for s0, s1 in bounds:
-                for j in range(s0, s1):
-                    theta[j % nf if not boundary else j] = math.pi / (s1 - s0)
-            frames = [polyhedron(np.concatenate([[0.0], np.cumsum(theta)])[:n])]
-        else:
-            frames = []
-            for q, (s0, s1) in enumerate(bounds):
-                phi = np.zeros(n)
-                for j in range(s0, s1 + 1):
-                    phi[j % n] = 0.5 * math.pi * (j - s0)  # alpha_q / n_q = pi/2 (quads)
-                frames.append(polyhedron(phi))
-                for j in range(s0, s1):
-                    face_frame[j % nf if not boundary else j] = q
-                for j in range(s0 + 1, s1):
-                    spoke_frame[j % n] = q
-    P = frames[0]
-    E = P[1 : 1 + n]
+        return (2 * math.pi * np.arange(n) / n)[None], face_frame, spoke_frame
+    cuts = list(sharp) if sharp else [0]
+    bounds = []
+    for q, s0 in enumerate(cuts):
+        s1 = cuts[q + 1] if q + 1 < len(cuts) else (cuts[0] + n if not boundary else n - 1)
+        if s1 > s0:
+            bounds.append((s0, s1))
+    if kind == CREASE:
+        theta = np.empty(nf)
+        for s0, s1 in bounds:
+            for j in range(s0, s1):
+                theta[j % nf if not boundary else j] = math.pi / (s1 - s0)
+        return np.concatenate([[0.0], np.cumsum(theta)])[:n][None], face_frame, spoke_frame
+    phis = np.zeros((len(bounds), n))
+    for q, (s0, s1) in enumerate(bounds):
+        for j in range(s0, s1 + 1):
+            phis[q, j % n] = 0.5 * math.pi * (j - s0)  # alpha_q / n_q = pi/2 (quads)
+        for j in range(s0, s1):
+            face_frame[j % nf if not boundary else j] = q
+        for j in range(s0 + 1, s1):
+            spoke_frame[j % n] = q
+    return phis, face_frame, spoke_frame
+
+
+def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary: bool) -> TaggedRules:
+    """Local rules around g tagged vertices of one kind and shape from seed 000's generalised
+    eigen-polyhedron, all at once.
+
+    kind: DART, CREASE or CORNER.  intervals: (g, n) spoke intervals d_0..d_{n-1} of each
+    vertex (rotation order; for an interior dart or crease, spoke 0 is a sharp spoke).  sharp:
+    indices of the sharp spokes (sorted).  boundary: spokes 0 and n-1 are the boundary edges
+    and there are n-1 faces.  Local points [V, E_0..E_{n-1}, F_0..F_{nf-1}], face i = (V, E_i,
+    F_i, E_{i+1}).  Returns TaggedRules (M, defined, P^0, T): M (g, size, size) float64, rows
+    of the new points; defined (size,) bool: every face row, the rows of untagged spokes, and
+    the vertex row of a dart; P^0 (g, size, 2); T (g, 2).  The crease and corner vertex rows
+    and the crease edges are the curve rules (``subdivision``), not here.  Raises
+    ``eigen_polyhedron.BilinearError`` whose ``index[0]`` is the failing vertex.
+
+    Construction (seed 000 sections 4.1-4.3): ``V^ = 0``; ``E^_i = l_i (cos phi_i, sin phi_i)``
+    with l_i of eq. (5) (``eigen_polyhedron.spoke_lengths(d, "fourier")``; ``l = d`` for two
+    spokes) and angles per sector (:func:`_frames`): dart ``2 pi / n``; crease ``pi / n_1`` and
+    ``pi / n_2``; corner ``alpha_q / n_q`` with the sector's topological angle (``pi/2`` a
+    quad, see ``subdivision``); ``F^_i = E^_i + E^_{i+1}``; ``lambda = 1/2``; ``T = V^1`` from
+    the vertex rule: dart eq. (9)-(10) (the two half-sums weighted with mu = y_2 / (y_2 - y_1)
+    so that ``T`` lies on the sharp spoke), crease eq. (14), corner 0.  Face rows: the bilinear
+    form (18) solved for ``F^1 = F^0/2 + T`` (eqs. 19-21); untagged edge rows: eqs. (23)-(28),
+    the bilinear form on ``(P_{i,k} + V or E_i)/2`` solved for ``E^1 = E^0/2 + T``: both by
+    ``eigen_polyhedron.bilinear_rule``, the closed form, every face (edge) of every vertex in
+    one vectorised solve.  Reconstruction: eq. (7)'s ``f_i`` is printed as a garbled product;
+    ``d_{i-1} d_{i+2}`` as in seed 002 (and ``eigen_polyhedron``).  Check (tests): equal
+    intervals give the BLZ rules (centroid faces, ``gamma = 3/8 - cos(theta)/4`` edges,
+    Catmull-Clark darts).
+    """
+    from . import eigen_polyhedron as eig
+
+    d = np.asarray(intervals, dtype=np.float64)
+    g, n = d.shape
+    nf = n - 1 if boundary else n
+    size = 1 + n + nf
+    ell = eig.spoke_lengths(d, "fourier") if n >= 3 else d.copy()
+    phis, face_frame, spoke_frame = _frames(kind, n, tuple(sorted(sharp)), boundary)
+    # frames (g, frames, size, 2): V^ = 0, E^_i, F^_i = E^_i + E^_{i+1}
+    e_hat = ell[:, None, :, None] * np.stack([np.cos(phis), np.sin(phis)], axis=-1)[None]
+    f_hat = e_hat[:, :, :nf] + e_hat[:, :, (np.arange(nf) + 1) % n]
+    frames = np.concatenate([np.zeros((g, phis.shape[0], 1, 2)), e_hat, f_hat], axis=2)
+    P = frames[:, 0]
     lam = 0.5
-    M = np.zeros((size, size))
+    M = np.zeros((g, size, size))
     defined = np.zeros(size, bool)
     if kind == DART:
-        hg, w = eig.spoke_terms(d)  # (n, 2n + 1): a dart is interior, so size = 2n + 1
+        hg, w = eig.spoke_terms(d)  # (g, n, 2n + 1): a dart is interior, so size = 2n + 1
         half = (n - 1) // 2 + 1
-        xa, xb = hg[:half].sum(0), hg[half:].sum(0)
-        wa, wb = w[:half].sum(), w[half:].sum()
-        y1, y2 = (xa @ P)[1], (xb @ P)[1]
+        xa, xb = hg[:, :half].sum(1), hg[:, half:].sum(1)
+        wa, wb = w[:, :half].sum(1), w[:, half:].sum(1)
+        y1, y2 = np.einsum("gs,gs->g", xa, P[..., 1]), np.einsum("gs,gs->g", xb, P[..., 1])
         mu = y2 / (y2 - y1)
-        row = (3.0 / n) * (mu * xa + (1 - mu) * xb) / (mu * wa + (1 - mu) * wb)
-        row[0] += (n - 3.0) / n
-        M[0] = row
+        row = (3.0 / n) * (mu[:, None] * xa + (1 - mu[:, None]) * xb) / (mu * wa + (1 - mu) * wb)[:, None]
+        row[:, 0] += (n - 3.0) / n
+        M[:, 0] = row
         defined[0] = True
-        t_vec = row @ P
+        t_vec = np.einsum("gs,gsd->gd", row, P)
     elif kind == CREASE:
-        a, b = d[0], d[sharp[1]] if len(sharp) > 1 else d[0]
-        k = sharp[1]
-        t_vec = (2 * a * (b + 2 * a) ** 2 * E[k] + 2 * b * (2 * b + a) ** 2 * E[0]) / (
+        k = sorted(sharp)[1]
+        a, b = d[:, :1], d[:, k : k + 1]
+        t_vec = (2 * a * (b + 2 * a) ** 2 * P[:, 1 + k] + 2 * b * (2 * b + a) ** 2 * P[:, 1]) / (
             8 * (b + a) * (2 * b + a) * (b + 2 * a)
         )
     else:
-        t_vec = np.zeros(2)
+        t_vec = np.zeros((g, 2))
 
-    def unit(i):
-        u = np.zeros(size)
-        u[i] = 1.0
-        return u
-
-    alpha = np.zeros((nf, 2))
-    for i in range(nf):
-        j = (i + 1) % n
-        Q = frames[face_frame[i]]
-        fq = Q[1 + n + i]
-        a1, a2 = eig._bilinear_inverse(Q[0], Q[1 + i], Q[1 + j], fq, t_vec + lam * fq, f"{KINDS[kind]} face {i}")
-        alpha[i] = a1, a2
-        r = 1 + n + i
-        M[r, 0] = (1 - a1) * (1 - a2)
-        M[r, 1 + i] = a1 * (1 - a2)
-        M[r, 1 + j] = (1 - a1) * a2
-        M[r, r] = a1 * a2
-        defined[r] = True
-    for i in range(n):
-        if i in sharp or (boundary and i in (0, n - 1)):
-            continue
-        h = (i - 1) % nf if not boundary else i - 1
-        ah, ai = alpha[h, 0], alpha[i, 1]
-        fh, fi = 1 + n + h, 1 + n + i
-        p1 = (1 - ah) * unit(0) + ah * unit(1 + (i - 1) % n)
-        p2 = (1 - ai) * unit(0) + ai * unit(1 + (i + 1) % n)
-        p3 = (1 - ah) * unit(1 + i) + ah * unit(fh)
-        p4 = (1 - ai) * unit(1 + i) + ai * unit(fi)
-        q1, q2 = 0.5 * (p1 + unit(0)), 0.5 * (p2 + unit(0))
-        q3, q4 = 0.5 * (p3 + unit(1 + i)), 0.5 * (p4 + unit(1 + i))
-        Q = frames[spoke_frame[i]]
-        b1, b2 = eig._bilinear_inverse(
-            q1 @ Q, q2 @ Q, q3 @ Q, q4 @ Q, t_vec + lam * Q[1 + i], f"{KINDS[kind]} edge {i}"
+    # Face rows, eqs. (18)-(21), and untagged edge rows, eqs. (23)-(28): one solve each.
+    k = np.arange(nf)
+    e, e_next, f = 1 + k, 1 + (k + 1) % n, 1 + n + k
+    M[:, f], alpha = eig.bilinear_rule(
+        eig.face_corners(size, e, e_next, f), frames[:, face_frame],
+        t_vec[:, None] + lam * frames[:, face_frame, f], f"{KINDS[kind]} face"
+    )
+    defined[f] = True
+    spokes = np.array([i for i in range(n) if i not in sharp and not (boundary and i in (0, n - 1))], np.int64)
+    if spokes.size:
+        h = (spokes - 1) % nf if not boundary else spokes - 1
+        e, e_prev, e_next = 1 + spokes, 1 + (spokes - 1) % n, 1 + (spokes + 1) % n
+        corners = eig.edge_corners(size, e, e_prev, e_next, 1 + n + h, 1 + n + spokes, alpha[:, h, 0], alpha[:, spokes, 1])
+        Q = frames[:, spoke_frame[spokes]]
+        M[:, e], _ = eig.bilinear_rule(
+            corners, Q, t_vec[:, None] + lam * frames[:, spoke_frame[spokes], e], f"{KINDS[kind]} edge", spokes
         )
-        M[1 + i] = (1 - b1) * (1 - b2) * q1 + b1 * (1 - b2) * q2 + (1 - b1) * b2 * q3 + b1 * b2 * q4
-        defined[1 + i] = True
-    for a in (M, defined, P, t_vec):
-        a.flags.writeable = False
+        defined[e] = True
     return TaggedRules(M, defined, P, t_vec)

@@ -230,17 +230,66 @@ def test_vertex_rule_uniform_and_affine():
     assert abs(w.sum() - 1) < 1e-15 and np.all(w > 0)
 
 
+def _real_roots(p00, p10, p01, p11, x):
+    roots, ok = ep.bilinear_roots(p00, p10, p01, p11, x)
+    return [tuple(r) for r in roots[0][ok[0]]]
+
+
 def test_bilinear_roots_closed_form_against_forward_map():
     rng = np.random.default_rng(7)
     for _ in range(200):
         p = rng.normal(size=(4, 2))
         s, t = rng.uniform(0, 1, size=2)
         x = (1 - s) * (1 - t) * p[0] + s * (1 - t) * p[1] + (1 - s) * t * p[2] + s * t * p[3]
-        roots = ep._bilinear_roots(p[0], p[1], p[2], p[3], x)
+        roots = _real_roots(p[0], p[1], p[2], p[3], x)
         assert min(math.hypot(a - s, b - t) for a, b in roots) < 1e-9
     # parallelogram: linear case, one root
-    roots = ep._bilinear_roots([0, 0], [1, 0], [0, 1], [1, 1], [0.3, 0.6])
+    roots = _real_roots([0, 0], [1, 0], [0, 1], [1, 1], [0.3, 0.6])
     assert len(roots) == 1 and np.allclose(roots[0], (0.3, 0.6), atol=1e-15)
+
+
+def _convex_quads(rng, k):
+    """k random convex quads (p00, p10, p01, p11): a unit square's corners moved by < 0.3."""
+    base = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
+    return base[None] + rng.uniform(-0.3, 0.3, size=(k, 4, 2))
+
+
+def test_bilinear_inverse_solves_many_problems_at_once():
+    """One call for 10,000 quads recovers every (s, t) in the unit square (the forward map is
+    the reference), and equals the solution of each problem solved alone."""
+    rng = np.random.default_rng(11)
+    k = 10_000
+    p = _convex_quads(rng, k) * rng.uniform(0.1, 10, size=(k, 1, 1))
+    st = rng.uniform(0, 1, size=(k, 2))
+    s, t = st[:, :1], st[:, 1:]
+    x = (1 - s) * (1 - t) * p[:, 0] + s * (1 - t) * p[:, 1] + (1 - s) * t * p[:, 2] + s * t * p[:, 3]
+    got = ep.bilinear_inverse(p[:, 0], p[:, 1], p[:, 2], p[:, 3], x)
+    assert got.shape == (k, 2)
+    # a 2x2 solve polished by Newton: round-off of O(1) coordinates, amplified by the Jacobian
+    assert np.abs(got - st).max() < 1e-12
+    for j in rng.choice(k, 20, replace=False):
+        alone = ep.bilinear_inverse(p[j, 0], p[j, 1], p[j, 2], p[j, 3], x[j])
+        assert np.array_equal(alone[0], got[j])
+
+
+def test_bilinear_inverse_names_the_failing_problem():
+    rng = np.random.default_rng(12)
+    p = _convex_quads(rng, 5)
+    x = p.mean(axis=1)
+    x[3] = [50.0, -40.0]  # far outside quad 3: no real root, or none near the square
+    labels = np.array([10, 11, 12, 13, 14])
+    try:
+        st = ep.bilinear_inverse(p[:, 0], p[:, 1], p[:, 2], p[:, 3], x, "face", labels)
+    except ep.BilinearError as exc:
+        assert exc.index == (3,) and "face 13" in str(exc)
+    else:  # a real root far away: taken as the nearest branch, and it solves the equation
+        s, t = st[3]
+        fwd = (1 - s) * (1 - t) * p[3, 0] + s * (1 - t) * p[3, 1] + (1 - s) * t * p[3, 2] + s * t * p[3, 3]
+        assert np.allclose(fwd, x[3])
+    # a quad folded over itself: x has two preimages in the square, (0.8, 0.5) and (0.5, 0.8)
+    q = np.array([[-1, -1], [0, 0], [0, 0], [0, 2]], float)
+    with pytest.raises(ep.BilinearError, match="folds over"):
+        ep.bilinear_inverse(q[0], q[1], q[2], q[3], [-0.1, 0.7])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -348,7 +397,7 @@ def test_face_solve_has_exactly_one_root_in_the_square(n):
         for i in range(n):
             e0, e1 = p0[ep.edge_index(n, i)], p0[ep.edge_index(n, i + 1)]
             f = p0[ep.face_index(n, i)]
-            roots = ep._bilinear_roots(p0[0], e0, e1, f, c.translation + c.lam * f)
+            roots = _real_roots(p0[0], e0, e1, f, c.translation + c.lam * f)
             inside = [r for r in roots if -1e-12 <= min(r) and max(r) <= 1 + 1e-12]
             assert len(inside) == 1
             np.testing.assert_allclose(inside[0], c.alpha[i], atol=1e-12)
@@ -516,3 +565,28 @@ def test_bad_intervals_raise(bad):
 def test_bad_option_raises():
     with pytest.raises(ValueError, match="angles"):
         ep.local_subdivision_matrix([1, 1, 1], angles="equal")
+
+
+@pytest.mark.parametrize("angles", ["standard", "modified"])
+def test_batch_of_vertices_equals_one_at_a_time(angles):
+    """local_subdivision_matrices solves g vertices of one valence in one vectorised call; each
+    matrix is the single-vertex one (which rounds its cache key to 14 digits: hence 1e-13 and
+    not round-off alone)."""
+    rng = np.random.default_rng(31)
+    for n in (3, 5, 8):
+        d = rng.uniform(1, 5, size=(40, n))
+        batch = ep.local_subdivision_matrices(d, angles=angles)
+        assert batch.shape == (40, 2 * n + 1, 2 * n + 1)
+        for k in range(40):
+            np.testing.assert_allclose(batch[k], ep.local_subdivision_matrix(d[k], angles=angles), atol=1e-13)
+
+
+def test_batch_names_the_vertex_whose_rule_is_undefined():
+    bad = [37.1, 93.8, 509.0, 1.8, 166.9, 12.2, 3300.7, 1.8]  # valence 8: face 0 has no root
+    with pytest.raises(ValueError, match="face 0"):
+        ep.local_subdivision_matrix(bad)
+    d = np.ones((6, 8))
+    d[4] = bad
+    with pytest.raises(ep.BilinearError) as info:
+        ep.local_subdivision_matrices(d)
+    assert info.value.index == (4, 0)  # vertex 4, face 0

@@ -535,7 +535,9 @@ def test_ep_rows_are_the_eigen_polyhedron_matrix(n):
         parent, kids, d = _ring_ids(m_, ep)
         block = S[kids][:, parent].toarray()
         assert np.abs(np.asarray(S[kids].sum(axis=1)).ravel() - 1).max() < 1e-14
-        assert np.abs(block - eig.local_subdivision_matrix(d)).max() < 1e-15  # the same numbers
+        # the same rule: S solves all EPs of a valence at once from the exact intervals, the
+        # cached single-vertex matrix from intervals rounded to 14 digits (its cache key)
+        assert np.abs(block - eig.local_subdivision_matrix(d)).max() < 1e-14
         assert abs(S[kids].toarray().sum() - block.sum()) < 1e-12  # closed: nothing outside the ring
         ep = int(kids[0])
 
@@ -1057,3 +1059,53 @@ def test_clamped_open_grid_first_step_equals_occ_knot_insertion():
     keep_v = [j for j in range(2 * n - 1) if j not in (1, 2 * n - 3)]
     assert ref.shape == (len(keep_u), len(keep_v), 3)
     assert np.abs(child.vertices[G[np.ix_(keep_u, keep_v)]] - ref).max() < 1e-12 * _size(mesh)
+
+
+def test_local_solves_are_vectorised_over_vertices(monkeypatch):
+    """Building S solves the bilinear rules (face and edge points) of all EPs of one valence, and
+    of all tagged vertices of one kind and shape, in one vectorised call each: the number of
+    calls does not grow with the number of vertices (the cold construction speed of
+    benchmarks/subdivide.py rests on it)."""
+    from patching import eigen_polyhedron as eig
+    from patching.primitives import polycube
+    from patching.subdivision import _Context
+    from patching.subdivision_rules import SMOOTH
+
+    calls = []
+    solve = eig.bilinear_inverse
+    monkeypatch.setattr(eig, "bilinear_inverse", lambda *a, **k: calls.append(1) or solve(*a, **k))
+    rng = np.random.default_rng(4)
+    # EPs: a polycube (valence 3 and 5) with random strip intervals
+    cube = polycube([(x, y, 0) for x in range(3) for y in range(3)] + [(0, 0, 1)], divisions=2)
+    cube = _random_strip_intervals(cube, seed=2)
+    # tagged vertices: a non-uniform torus with three crease loops across it
+    m, n = 12, 8
+    grid = torus_grid(m, n, rng.uniform(1, 4, m), rng.uniform(1, 4, n))
+    creases = {(a * n + b, ((a + 1) % m) * n + b): 10.0 for a in range(m) for b in (0, 3, 5)}
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    torus = from_arrays(grid.vertices, faces, intervals=grid.intervals, creases=creases)
+    for mesh in (cube, torus):
+        ctx = _Context(mesh)
+        eps = (ctx.valence != 4) & ~ctx.v_boundary & (ctx.parent.rule == SMOOTH)
+        tagged = ctx.parent.rule != SMOOTH
+        assert eps.sum() + tagged.sum() >= 14  # many local solves (14 EPs, 36 crease vertices)
+        groups = len(np.unique(ctx.valence[eps])) + len(np.unique(ctx.valence[tagged]))
+        calls.clear()
+        S, _ = subdivision_operator(mesh)
+        assert 0 < len(calls) <= 2 * groups  # faces and edges, once per group
+        assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-13
+
+
+def test_tagged_rules_batch_equals_one_vertex_at_a_time():
+    from patching.subdivision_rules import CORNER, CREASE, DART, tagged_rules_batch, tagged_vertex_rules
+
+    rng = np.random.default_rng(8)
+    for kind, n, sharp, boundary in [(DART, 5, (0,), False), (CREASE, 6, (0, 3), False),
+                                     (CREASE, 4, (0, 3), True), (CORNER, 6, (0, 2, 4), False)]:
+        d = rng.uniform(1, 4, size=(7, n))
+        batch = tagged_rules_batch(kind, d, sharp, boundary)
+        for k in range(7):
+            one = tagged_vertex_rules(kind, tuple(d[k]), sharp, boundary)
+            assert np.array_equal(batch.defined, one.defined)
+            # the same arithmetic on the same numbers, batched: round-off only
+            assert np.abs(batch.matrix[k] - one.matrix).max() < 1e-14
