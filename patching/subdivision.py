@@ -260,21 +260,45 @@ class _Context:
         )
 
     @cached_property
+    def regular_boundary_vertex(self) -> np.ndarray:
+        """(v,) bool: the boundary line continues straight through v (two quads, valence 3,
+        no tag but the boundary crease itself)."""
+        return (
+            self.v_boundary
+            & (self.valence == 3)
+            & ~self.v_nonquad
+            & (self.parent.rule == CREASE)
+            & (self.n_faces_at == 2)
+        )
+
+    @cached_property
     def ahead(self) -> np.ndarray:
-        """(H,) interval beyond dest(h) on h's straight line; h's own where there is no line."""
+        """(H,) interval beyond dest(h) on h's straight line; h's own where there is no line.
+
+        Lines run straight through regular interior vertices, and along the boundary through
+        regular boundary vertices: there the boundary curve's next interval, as the boundary
+        crease rule (``crease_beyond``) reads it, so that the edge points of the spokes into the
+        boundary see the same knots as the boundary curve (a clamped side, DESIGN 2, then
+        keeps its zero strips degenerate: every point of a zero strip lies on the boundary)."""
         out = self.d_h.copy()
         b = self.dest
         ok = self.regular_line_vertex[b]
         hs = np.flatnonzero(ok)
         c = self.nxt[self.twin[self.nxt[hs]]]
         out[hs] = self.d_h[c]
+        # along the boundary: h's edge is a boundary edge, next(h) the spoke into the interior
+        hb = np.flatnonzero(self.regular_boundary_vertex[b] & (self.twin < 0) & (self.twin[self.nxt] >= 0))
+        out[hb] = self.d_h[self.nxt[self.twin[self.nxt[hb]]]]
         return out
 
     def ahead_back(self, h: np.ndarray) -> np.ndarray:
-        """Interval beyond origin(h), backwards along h (through the twin; own interval on a
-        boundary)."""
+        """Interval beyond origin(h), backwards along h (through the twin; along the boundary
+        through a regular boundary vertex; else h's own interval)."""
         t = self.twin[h]
-        return np.where(t >= 0, self.ahead[np.maximum(t, 0)], self.d_h[h])
+        back = self.twin[self.prv[h]]  # spoke leaving origin(h) in the neighbouring face
+        along = (t < 0) & self.regular_boundary_vertex[self.origin[h]] & (back >= 0)
+        other = self.d_h[self.prv[np.maximum(back, 0)]]
+        return np.where(t >= 0, self.ahead[np.maximum(t, 0)], np.where(along, other, self.d_h[h]))
 
     def crease_beyond(self, lev: _Level, e: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Interval beyond vertex v along the crease curve through sharp edge e."""
