@@ -55,10 +55,15 @@ Choices where the seeds are silent, written once:
 * An untagged edge with *both* ends tagged: the mean of the two BLZ rules.
 * An endpoint's "interval beyond" (``d_{i-1}`` of the curve rules): through a regular smooth
   vertex (interior, valence 4, quads) the straight continuation's interval; along a crease
-  through a crease vertex the other crease edge's; elsewhere (corner, dart, boundary, EP) the
-  edge's own interval, the mirror image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it
+  through a crease vertex the other crease edge's, also for the face and edge points beside a
+  regular boundary vertex (two quads, valence 3), so that they read the boundary curve's knots;
+  elsewhere (corner, dart, a spoke into the boundary, EP) the edge's own interval, the mirror image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it
   a crease ending at a corner interpolates the corner and its first edge point is the
   midpoint, as seed 000's corner eigen-polyhedron (``P^1 = P^0 / 2``) requires.
+* Zero intervals (multiple knots, DESIGN 2) split into two zero halves.  On a clamped side (an
+  open grid whose outer strips carry 0) every point of the zero strips then lies on the
+  boundary curve (zero-width faces stay degenerate) and the rest is the clamped NURBS after
+  midpoint knot insertion, step after step (tests: three steps against OpenCASCADE).
 * Rows claimed by two local solves (a face or edge touching two EPs or tagged vertices, as
   every face along a crease does): their mean.  With equal claims (uniform intervals) the
   mean is the rule itself.
