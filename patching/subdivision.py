@@ -57,9 +57,9 @@ Choices where the seeds are silent, written once:
   vertex (interior, valence 4, quads) the straight continuation's interval; along a crease
   through a crease vertex the other crease edge's, also for the face and edge points beside a
   regular boundary vertex (two quads, valence 3), so that they read the boundary curve's knots;
-  elsewhere (corner, dart, a spoke into the boundary, EP) the edge's own interval, the mirror image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it
-  a crease ending at a corner interpolates the corner and its first edge point is the
-  midpoint, as seed 000's corner eigen-polyhedron (``P^1 = P^0 / 2``) requires.
+  elsewhere (corner, dart, a spoke into the boundary, EP) the edge's own interval, the mirror
+  image that seed 000 Fig. 8 assumes (``d-bar = d``).  With it a crease ending at a corner
+  interpolates the corner and its first edge point is the midpoint, as seed 000's corner eigen-polyhedron (``P^1 = P^0 / 2``) requires.
 * Zero intervals (multiple knots, DESIGN 2) split into two zero halves.  On a clamped side (an
   open grid whose outer strips carry 0) every point of the zero strips then lies on the
   boundary curve (zero-width faces stay degenerate) and the rest is the clamped NURBS after
@@ -83,8 +83,10 @@ Choices where the seeds are silent, written once:
   A crease sector of a single face (theta = pi) makes the polyhedron degenerate, and a zero
   spoke interval (a multiple knot, DESIGN 2) leaves it undefined: knot insertion with BLZ there
   too.
-* Not implemented (UnsupportedError, never a wrong surface): non-uniform intervals at an
-  interior vertex of valence 2; a rule whose bilinear solve has no root in the unit square
+* Not implemented (UnsupportedError, never a wrong surface): an interior vertex of valence 2
+  in a mesh with non-uniform intervals, tagged or not (the eigen-polyhedron needs n >= 3, and
+  no seed defines knot insertion around two faces sharing two edges; uniform intervals take
+  Catmull-Clark's rules, which OpenSubdiv defines for it); a rule whose bilinear solve has no root in the unit square
   (extreme interval ratios).
 """
 
@@ -765,6 +767,15 @@ def _fractional_weight(ctx: _Context) -> np.ndarray:
 
 def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
     """Refuse what the non-uniform rules here do not define (module docstring)."""
+    v2 = np.flatnonzero(~ctx.v_boundary & (ctx.valence == 2) & ctx.topo.vertex_is_used)
+    if v2.size:
+        v = int(v2[0])
+        raise UnsupportedError(
+            f"vertex {v} has valence 2: the non-uniform subdivision rules (seed 000, [LFS16]) "
+            f"need valence >= 3 inside the mesh (with uniform knot intervals it subdivides by "
+            f"Catmull-Clark's rules)",
+            ctx.mesh.where("vertex", v),
+        )
     # Non-quad faces: the child's strips must stay consistent.
     h = np.flatnonzero(ctx.ksize != 4)
     bad = h[ctx.d_h[ctx.nxt[h]] != ctx.d_h[ctx.prv[h]]]

@@ -1160,3 +1160,31 @@ def test_tagged_rules_batch_equals_one_vertex_at_a_time():
             assert np.array_equal(batch.defined, one.defined)
             # the same arithmetic on the same numbers, batched: round-off only
             assert np.abs(batch.matrix[k] - one.matrix).max() < 1e-14
+
+
+def _valence2_square(intervals, creases=None):
+    """Open square A B C D split by an interior vertex X into two quads (A, B, C, X) and
+    (A, X, C, D): X (vertex 4) has valence 2.  intervals: (strip of AB, CX, DA; strip of BC,
+    XA, CD)."""
+    v = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1.2, 0.8, 0.3]], float)
+    faces = [[0, 1, 2, 4], [0, 4, 2, 3]]
+    return from_arrays(v, faces, intervals={(0, 1): intervals[0], (1, 2): intervals[1]}, creases=creases or {})
+
+
+@pytest.mark.parametrize("creases", [None, {(0, 4): 10.0, (4, 2): 10.0}], ids=["untagged", "crease through"])
+def test_valence2_with_nonuniform_intervals_refused_naming_the_vertex(creases):
+    """No non-uniform rule is defined at an interior vertex of valence 2: one line of the error
+    family naming it, whether tagged or not (a crease through it used to pass silently with
+    unverified knot-insertion rows); uniform intervals subdivide it (Catmull-Clark)."""
+    with pytest.raises(UnsupportedError) as info:
+        subdivision_operator(_valence2_square((1.0, 2.0), creases))
+    err = info.value
+    assert "vertex 4 has valence 2" in err.what and err.where == "vertex 4"
+    assert "\n" not in str(err)
+    S, child = subdivision_operator(_valence2_square((1.5, 1.5), creases))
+    assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-15
+    x = child.vertices[S.shape[0] - 1]  # the vertex point of X
+    if creases is None:  # Catmull-Clark, valence 2: (sum of edge neighbours + face points) / 4
+        P = _valence2_square((1.5, 1.5)).vertices
+        f0, f1 = P[[0, 1, 2, 4]].mean(0), P[[0, 4, 2, 3]].mean(0)
+        assert np.abs(x - (P[0] + P[2] + f0 + f1) / 4).max() < 1e-15
