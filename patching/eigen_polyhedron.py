@@ -734,6 +734,13 @@ def subdivision_eigenvalues(
 
     The face/edge coefficients stay in [0, 1] (a convex rule) up to r = 5 for every valence;
     beyond that some leave it (n = 3 from r ~ 10), while the eigen-structure may still hold.
+
+    r is the true ratio max/min of the spoke intervals.  ``benchmarks/subdivide.py`` once
+    reported the structure holding "up to ratio 1000" for S's EP block: it drew every spoke
+    uniformly in [1, r], whose true max/min is only about n + 1, so it never met the failing
+    configurations.  S's EP block is this matrix (to the cache key's 14-digit rounding; tests in
+    ``test_subdivision``), and with the same draws both report the same failures (n = 5, 7, 8,
+    11, 12, 16 at r = 1000, log-uniform: ``benchmarks/eigen.py`` and ``subdivide.py --report``).
     """
     _check_choice("angles", angles, ANGLE_CHOICES)
     _check_choice("lengths", lengths, LENGTH_CHOICES)

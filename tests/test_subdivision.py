@@ -1188,3 +1188,31 @@ def test_valence2_with_nonuniform_intervals_refused_naming_the_vertex(creases):
         P = _valence2_square((1.5, 1.5)).vertices
         f0, f1 = P[[0, 1, 2, 4]].mean(0), P[[0, 4, 2, 3]].mean(0)
         assert np.abs(x - (P[0] + P[2] + f0 + f1) / 4).max() < 1e-15
+
+
+def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
+    """The reconciliation of the two eigenvalue checks (benchmarks/eigen.py's docstring): at a
+    true spoke ratio of 1e4 where eigen_polyhedron finds 1 > lambda = lambda > |others| broken
+    (test_eigen_polyhedron::test_extreme_ratio_loses_the_eigen_structure), S's own EP block on a
+    mesh is the same matrix and is broken the same way; the earlier S-side check only drew
+    intervals uniformly in [1, r], whose true ratio max/min is about n + 1."""
+    from patching import eigen_polyhedron as eig
+
+    d = [10000.0, 107.5090358880951, 3152.15105974721, 258.1861017480902, 1.0]
+    mesh = polar_disk(5, rings=2, spoke_intervals=d, outer="spoke")
+    _, child = subdivision_operator(mesh)
+    S, _ = subdivision_operator(child)
+    parent, kids, dc = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+    block = S[kids][:, parent].toarray()
+    local = eig.local_subdivision_matrix(dc)
+    # entries up to ~10 at this ratio; S's batch solve and the cached single solve differ by
+    # the cache key's rounding to 14 digits
+    assert np.abs(block - local).max() < 1e-12
+    ev = np.linalg.eigvals(block)
+    ev = ev[np.argsort(-np.abs(ev))]
+    lam = eig.characteristic_scale(5).lam
+    assert ev[1].real < -lam and abs(ev[1].imag) < 1e-9  # a negative eigenvalue beyond lambda
+    np.testing.assert_allclose(np.sort_complex(ev), np.sort_complex(eig.subdivision_eigenvalues(dc)), atol=1e-9)
+    rng = np.random.default_rng(0)  # the old S-side draw: the true ratio stays near n + 1
+    true_ratio = [np.ptp(x) / x.min() + 1 for x in rng.uniform(1, 1000, (200, 5))]
+    assert np.median(true_ratio) < 12
