@@ -37,6 +37,7 @@ from OCP.Precision import Precision
 from OCP.TColgp import TColgp_Array1OfPnt, TColgp_Array2OfPnt
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
 from OCP.TopoDS import (
+    TopoDS_Compound,
     TopoDS_Edge,
     TopoDS_Face,
     TopoDS_Shape,
@@ -199,9 +200,9 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
         faces.append(f)
 
     volumes: list[float] = []
-    shape = assemble(builder, edges, faces, topo.is_closed, lambda solid: volumes.append(_volume(solid)) or volumes[0] < 0.0)
+    shape = assemble(builder, edges, faces, topo, lambda solid: volumes.append(_volume(solid)) or volumes[-1] < 0.0)
     if check:
-        if volumes and abs(volumes[0]) <= tol * max(surface.size, tol) ** 2:
+        if volumes and min(map(abs, volumes)) <= tol * max(surface.size, tol) ** 2:
             raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
         _require_valid(shape, faces, patches)
     return shape
@@ -247,9 +248,28 @@ def bound_face(builder: BRep_Builder, face: TopoDS_Face, sides, edges, side_edge
     builder.Add(face, wire)
 
 
-def assemble(builder: BRep_Builder, edges, faces, closed: bool, inside_out) -> TopoDS_Shape:
-    """Finish shared-topology faces: edge ranges, then a shell, and for a closed topology a
-    solid, turned around when ``inside_out(solid)`` says its volume is negative.
+def patch_components(topo) -> tuple[np.ndarray, np.ndarray]:
+    """(label per patch, closed per component): patches joined through shared edges; a
+    component is closed when each of its edges is used twice (``PatchTopology``)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
+    p = side_edge.shape[0]
+    rows = np.repeat(np.arange(p), 4)
+    graph = coo_matrix((np.ones(rows.size), (rows, p + side_edge.ravel())), shape=(p + topo.n_edges,) * 2)
+    _, label = connected_components(graph, directed=False)
+    _, label = np.unique(label[:p], return_inverse=True)
+    open_edge = topo.edge_use_count[side_edge] < 2  # (p, 4)
+    closed = np.bincount(label, weights=open_edge.any(axis=1), minlength=label.max() + 1 if p else 0) == 0
+    return label.ravel(), closed
+
+
+def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=None) -> TopoDS_Shape:
+    """Finish shared-topology faces: edge ranges, then a shell per connected component of the
+    patches, and for a closed component a solid, turned around when ``inside_out(solid)`` says
+    its volume is negative.  One component gives that shell or solid, several a compound.
+    face_rows: a patch row of each face (default: face i is patch i).
 
     Every curve representation is parametrised on [0, 1] by construction (SameRange,
     SameParameter hold exactly)."""
@@ -257,21 +277,33 @@ def assemble(builder: BRep_Builder, edges, faces, closed: bool, inside_out) -> T
         builder.Range(e, 0.0, 1.0)
         builder.SameRange(e, True)
         builder.SameParameter(e, True)
-    shell = TopoDS_Shell()
-    builder.MakeShell(shell)
-    for f in faces:
-        builder.Add(shell, f)
-    if not closed:
-        return shell
-    shell.Closed(True)
-    solid = TopoDS_Solid()
-    builder.MakeSolid(solid)
-    builder.Add(solid, shell)
-    if inside_out(solid):
+    label, closed = patch_components(topo)
+    face_label = label[np.arange(len(faces)) if face_rows is None else np.asarray(face_rows, dtype=np.int64)]
+    parts = []
+    for c in range(closed.size):
+        shell = TopoDS_Shell()
+        builder.MakeShell(shell)
+        for i in np.flatnonzero(face_label == c).tolist():
+            builder.Add(shell, faces[i])
+        if not closed[c]:
+            parts.append(shell)
+            continue
+        shell.Closed(True)
         solid = TopoDS_Solid()
         builder.MakeSolid(solid)
-        builder.Add(solid, shell.Reversed())
-    return solid
+        builder.Add(solid, shell)
+        if inside_out(solid):
+            solid = TopoDS_Solid()
+            builder.MakeSolid(solid)
+            builder.Add(solid, shell.Reversed())
+        parts.append(solid)
+    if len(parts) == 1:
+        return parts[0]
+    compound = TopoDS_Compound()
+    builder.MakeCompound(compound)
+    for part in parts:
+        builder.Add(compound, part)
+    return compound
 
 
 def _volume(shape: TopoDS_Shape) -> float:

@@ -46,7 +46,7 @@ from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 from patching.evaluation import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, bound_face, shape_tolerance
+from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, bound_face, patch_components, shape_tolerance
 
 __all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
@@ -309,7 +309,8 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
         faces.append(f)
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
-    shape = assemble(builder, edges.values(), faces, topo.is_closed, lambda solid: _signed_volume(surface) < 0.0)
+    face_rows = [plan[1] if plan[0] == "patch" else int(plan[1].rows.flat[0]) for plan in faces_plan]
+    shape = assemble(builder, list(edges.values()), faces, topo, _inside_out(surface), face_rows)
     if check:
         from OCP.BRepCheck import BRepCheck_Analyzer
 
@@ -319,18 +320,28 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)
 
 
-def _signed_volume(surface: BezierSurface) -> float:
-    """Volume enclosed by the patches, 1/3 of the sum of the integrals of S . (S_s x S_t), by
-    Gauss-Legendre with 10 nodes (exact for degree <= 5): its sign orients the solid."""
+def _signed_volumes(surface: BezierSurface) -> np.ndarray:
+    """Volume enclosed by each patch's cone to the origin, 1/3 of the integral of
+    S . (S_s x S_t), by Gauss-Legendre with 10 nodes (exact for degree <= 5), in row order:
+    summed over a closed component, its sign orients that solid."""
     x, weights = np.polynomial.legendre.leggauss(10)
     x, weights = (x + 1) / 2, weights / 2
     s, t = (a.ravel() for a in np.meshgrid(x, x, indexing="ij"))
     w = np.outer(weights, weights).ravel()
-    total = 0.0
+    out = []
     for g in surface.groups:
         p, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
-        total += float(np.einsum("m,kmc,kmc->", w, p, np.cross(ds, dt))) / 3
-    return total
+        out.append(np.einsum("m,kmc,kmc->k", w, p, np.cross(ds, dt)) / 3)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _inside_out(surface: BezierSurface):
+    """``assemble``'s orientation test without OCC's slow integration of multi-span faces:
+    called once per closed component, in component order."""
+    label, closed = patch_components(surface.topology)
+    volumes = np.bincount(label, weights=_signed_volumes(surface), minlength=closed.size)
+    order = iter(np.flatnonzero(closed).tolist())
+    return lambda solid: volumes[next(order)] < 0.0
 
 
 def _boundary(block: Block, with_cell: bool = False):

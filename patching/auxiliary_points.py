@@ -13,15 +13,22 @@ eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([19], ``eigen_polyhedron`
 3. Vbar = Q Phat, the projection of [E - V, F - V] on the lambda-eigenspace of Nhat.
 4. A_i = C - C' + Vbar_{n+i}, C' = sum_i c_i Vbar_{n+i}, c_i = the weight of A_i in the patch
    corner at the EP (eq. 3: c_i = d_{i-1} d_{i+2} / sum), so that corner is exactly C.
+5. (ours) Plus the part of the dropped components that the EP cannot see: the difference
+   between the "extraction" anchors below and these, projected onto the anchor changes that
+   leave both the corner point (eq. 3) and the edge points on the spokes (eq. 1) unchanged.
+   Those are all the stage-1 G1 solve reads of the tangent plane, so it stays [19]'s exactly,
+   while the twist comes back: at a forced valence-4 vertex with uniform intervals the
+   bicubic B-spline is reproduced (its face points differ from their tangent-plane
+   projections by an alternating pattern, which is in that null space).  For odd valence or
+   generic intervals the null space is {0} and step 5 changes nothing.
 
 All weights depend on intervals only; each anchor is a row over the 2n+1 mesh vertices of the
 ring (P_0 the EP, then E_i = far end of spoke i, then F_i = far corner of face i).
 
 Step 3 projects the anchors onto the tangent plane: every first-order input of the G1 solve
 at the EP then lies in that plane, which is what makes the surface's tangent plane exactly
-[19]'s, but it also drops the twist and curvature of the ring.  So at a valence-4 vertex
-forced through the EP path the bicubic B-spline is *not* reproduced unless the ring is
-planar.  ``rule="extraction"`` keeps every component instead: A_i = F_i + C - sum_j c_j F_j
+[19]'s, but it also drops the twist and curvature of the ring; step 5 gives back the part of
+them that no first-order input sees.  ``rule="extraction"`` keeps every component instead: A_i = F_i + C - sum_j c_j F_j
 (the first-ring face points moved so that the corner is still [19]'s limit point C); it
 reproduces the B-spline at a forced valence-4 vertex with uniform intervals, and its tangent
 plane is [19]'s only approximately.  Both are offered; section 3.5's rule is the default.
@@ -81,6 +88,32 @@ def _anchor_weights(d: tuple, a: tuple, angles: str, rule: str) -> np.ndarray:
     faces = vbar[n:]
     shift = c @ faces  # C'
     out = limit[None, :] - shift[None, :] + faces
+    # Step 5: give back what the projection dropped and nothing at the EP sees (see module
+    # docstring): the part of (extraction anchors - projected anchors) in the null space of
+    # the map anchors -> [P00 (eq. 3), edge points on the spokes (eq. 1)].
+    extraction = ring[n + 1 :] + (limit - ring[0])[None, :]
+    invisible = _invisible_projector(tuple(d))
+    out = out + invisible @ (extraction - out)
+    out.setflags(write=False)
+    return out
+
+
+@lru_cache(maxsize=4096)
+def _invisible_projector(d: tuple) -> np.ndarray:
+    """(n, n) orthogonal projector onto the anchor combinations x with sum_i c_i x_i = 0 and
+    d_{i-1} x_i + d_{i+1} x_{i-1} = 0 for every spoke i: changes of the anchors that move
+    neither the EP's corner point nor the edge points next to it.  Uniform even valence: the
+    alternating pattern (+, -, +, -, ...), the twist; odd valence or generic intervals: {0}."""
+    d_arr = np.array(d)
+    n = d_arr.size
+    rows = np.zeros((n + 1, n))
+    rows[0] = vertex_point_weights(d_arr)
+    for i in range(n):
+        rows[1 + i, i] += d_arr[(i - 1) % n]
+        rows[1 + i, (i - 1) % n] += d_arr[(i + 1) % n]
+    _, sv, vt = np.linalg.svd(rows)
+    z = vt[int(np.count_nonzero(sv > 1e-12 * sv.max())) :].T
+    out = z @ z.T
     out.setflags(write=False)
     return out
 
@@ -121,7 +154,7 @@ def anchor_matrix(
         cols.append(np.broadcast_to(ids[:, None, :], weights.shape).ravel())
         vals.append(weights.ravel())
     if not rows:
-        return sp.csr_matrix((0, n_points))
+        return sp.csr_matrix((n_anchors, n_points))
     out = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_anchors, n_points)
     )

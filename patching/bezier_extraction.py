@@ -53,7 +53,7 @@ import scipy.sparse as sp
 
 from .topology import Topology
 
-__all__ = ["CubicExtraction", "cubic_extraction"]
+__all__ = ["CubicExtraction", "cubic_extraction", "regular_face_points"]
 
 # Local positions of the 16 coefficients, as (i, j) -> which point.
 #: net position of the face point of corner k
@@ -173,23 +173,34 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
 
-def _crease_neighbour_intervals(topo: Topology, hs: np.ndarray, corner_vertex: np.ndarray):
+def _crease_neighbour_intervals(topo: Topology, hs: np.ndarray, sharp_edge: np.ndarray, corner_vertex: np.ndarray):
     """Intervals of the crease legs before origin(h) and after dest(h), for sharp half-edges hs.
 
-    The leg before continues the crease straight through origin(h) (prev(twin(prev(h))), a
-    regular crease or straight boundary vertex); at a corner it is mirrored (h's own interval);
-    at a valence-2 boundary vertex that is not a corner (interpolateboundary 2) the crease turns
-    onto the other boundary edge, prev(h).  Likewise after dest(h)."""
+    At a crease vertex (two sharp edges, no corner) the leg continues on the other sharp edge,
+    whatever the valence (a crease through a regular vertex, through an EP, or an open boundary
+    turning through a vertex with one face under interpolateboundary 2).  At a corner, or where
+    a crease ends (a dart), the polygon ends: the leg is mirrored (h's own interval, the phantom
+    point 2 P_0 - P_1), so the curve ends at the vertex."""
     iv = topo.halfedge_interval
-    twin_prev = topo.twin[topo.prev[hs]]
-    straight_before = topo.prev[np.maximum(twin_prev, 0)]
-    before = np.where(twin_prev >= 0, iv[straight_before], iv[topo.prev[hs]])
-    before = np.where(corner_vertex[topo.origin[hs]], iv[hs], before)
-    twin_next = topo.twin[topo.next[hs]]
-    straight_after = topo.next[np.maximum(twin_next, 0)]
-    after = np.where(twin_next >= 0, iv[straight_after], iv[topo.next[hs]])
-    after = np.where(corner_vertex[topo.dest[hs]], iv[hs], after)
-    return before, after
+    ends = topo.edges[sharp_edge]
+    count = np.bincount(ends.ravel(), minlength=topo.n_vertices)
+    total = np.bincount(ends.ravel(), weights=np.repeat(topo.edge_interval[sharp_edge], 2), minlength=topo.n_vertices)
+    own = iv[hs]
+
+    def leg(v):
+        return np.where(corner_vertex[v] | (count[v] != 2), own, total[v] - own)
+
+    return leg(topo.origin[hs]), leg(topo.dest[hs])
+
+
+def regular_face_points(topo: Topology, sharp_edge: np.ndarray) -> sp.csr_matrix:
+    """(h, n) the double-knot face point of every corner of every quad face (Fig. 6a), as if
+    no vertex were extraordinary; across sharp edges the mirrored neighbour.  The anchors of a
+    sector at a sharp vertex are these points (``operator``)."""
+    none = np.zeros(topo.n_vertices, dtype=bool)
+    no_anchor = np.full(topo.origin.size, -1, dtype=np.int64)
+    r, c, w = _face_point_triplets(topo, none, no_anchor, sharp_edge)
+    return sp.csr_matrix((w, (r, c)), shape=(topo.origin.size, topo.n_vertices))
 
 
 def cubic_extraction(
@@ -201,12 +212,11 @@ def cubic_extraction(
     """C0 bicubic extraction of every quad face of an all-quad mesh (module docstring).
 
     is_ep: (n,) bool, the vertices replaced by anchors (default: the topology's EPs).
-    sharp_edge: (e,) bool, infinitely sharp edges (default none), running straight through
-    regular interior vertices.  Across them the faces read a mirrored neighbour; their edge
+    sharp_edge: (e,) bool, infinitely sharp edges (default none; ``features``).  Across them the faces read a mirrored neighbour; their edge
     and vertex points are those of the crease polygon's own cubic B-spline (its strip
     intervals), so both sides end exactly on the crease curve, C0.  Boundary edges are passed
     here as sharp when the boundary is interpolated.
-    corner_vertex: (n,) bool, vertices where creases end at a corner (interpolated).
+    corner_vertex: (n,) bool, corners (interpolated: the vertex point is the control point).
     Faces need their four sides interior for edge points and their corners interior for
     vertex points; rows of other faces are left incomplete and must not be used.
     """
@@ -246,7 +256,7 @@ def cubic_extraction(
     # needed, as no twin provides it.  At a corner the crease polygon ends: the leg before it
     # is mirrored (the phantom point 2 P_0 - P_1), so the curve ends at the corner point.
     hs = np.flatnonzero(sharp_he)
-    interval_before, interval_after = _crease_neighbour_intervals(topo, hs, corner_vertex)
+    interval_before, interval_after = _crease_neighbour_intervals(topo, hs, sharp_edge, corner_vertex)
     d = iv[hs]
     total = interval_before + d + interval_after
     a = _safe_ratio(interval_before, total)
@@ -267,9 +277,10 @@ def cubic_extraction(
     vw = _safe_ratio(weight, total_w[topo.origin[hv]], fallback=0.0)
     degenerate = total_w[topo.origin[hv]] <= 0
     vw[degenerate] = 1.0 / count[topo.origin[hv]][degenerate]
-    on_crease = np.zeros(n, dtype=bool)
-    on_crease[topo.edges[sharp_edge].ravel()] = True
-    keep = ~on_crease[topo.origin[hv]]
+    # Vertices on a crease (two or more sharp edges) take the crease rule; a dart (one sharp
+    # edge) keeps the smooth vertex point (seed 000 section 4: the crease fades out there).
+    on_crease = np.bincount(topo.edges[sharp_edge].ravel(), minlength=n) >= 2
+    keep = ~on_crease[topo.origin[hv]] & ~corner_vertex[topo.origin[hv]]
     vertex_w = sp.csr_matrix((vw[keep], (topo.origin[hv][keep], hv[keep])), shape=(n, n_he))
     # At a crease vertex: the crease B-spline's vertex point from its two leg points near it,
     # each weighted by the other leg's interval; a corner keeps its control point.
@@ -277,7 +288,7 @@ def cubic_extraction(
     leg_vertex = np.concatenate([topo.origin[hs], topo.dest[lone]])
     leg_row = np.concatenate([hs, n_he + lone])  # rows of [crease near origin; near dest]
     leg_d = np.concatenate([d, iv[lone]])
-    corner = corner_vertex[leg_vertex]
+    corner = corner_vertex[leg_vertex] | ~on_crease[leg_vertex]
     leg_vertex, leg_row, leg_d = leg_vertex[~corner], leg_row[~corner], leg_d[~corner]
     leg_total = np.bincount(leg_vertex, weights=leg_d, minlength=n)
     cw = _safe_ratio(leg_total[leg_vertex] - leg_d, leg_total[leg_vertex])

@@ -45,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .angle_configuration import angle_configuration
+from .features import CORNER_SECTOR, CREASE_SECTOR, Features
 from .g1_constraints import a_slot, b_slot, r_slot, spoke_equations
 from .surface import CORNER_PARAMETERS
 from .topology import Topology
@@ -74,11 +75,16 @@ LOCAL_OFFSET = np.array(
 
 @dataclass(frozen=True)
 class EPGroup:
-    """All EPs of one valence n, as (E, n) arrays in counter-clockwise spoke order.
+    """EPs of one valence n and one sharp-spoke pattern, as (E, n) arrays in spoke order.
 
-    h: spokes (outgoing half-edges); d: their intervals; faces: patch i = face(h_i); corner:
-    the EP's corner in that face; far: the vertex at the far end of each spoke if it is an EP
-    (else -1); far_spoke: that spoke's index in the far EP's ring."""
+    h: spokes (outgoing half-edges; on a boundary ring the last spoke is the incoming boundary
+    half-edge); d: their intervals; faces: patch i = face(h_i) (-1 for a boundary ring's gap,
+    patch n - 1); corner: the EP's corner in that face; far: the vertex at the far end of each
+    spoke if it is an EP (else -1); far_spoke: that spoke's index in the far EP's ring.
+    sharp: (n,) the pattern of sharp spokes (seed 002 section 4.2: sectors, no G1 across them);
+    boundary: the ring is an open fan; theta: (n,) fixed sector angles per patch for rings with
+    sharp spokes or an interpolated vertex (``features``), None where the angles come from
+    ``angle_configuration``."""
 
     n: int
     vertices: np.ndarray
@@ -88,33 +94,113 @@ class EPGroup:
     corner: np.ndarray
     far: np.ndarray
     far_spoke: np.ndarray
+    sharp: np.ndarray = None  # type: ignore[assignment]
+    boundary: bool = False
+    theta: np.ndarray | None = None
+
+    @property
+    def gap(self) -> int:
+        """The missing patch of a boundary ring (n - 1), or -1."""
+        return self.n - 1 if self.boundary else -1
+
+    @property
+    def unconstrained(self) -> np.ndarray:
+        """(n,) spokes without G1 constraint: the sharp ones."""
+        return np.zeros(self.n, dtype=bool) if self.sharp is None else self.sharp
+
+    @property
+    def pinned(self) -> np.ndarray:
+        """(n,) spokes that keep the crease curve: the sharp ones, except a dart's."""
+        if self.sharp is None or self.is_dart:
+            return np.zeros(self.n, dtype=bool)
+        return self.sharp
+
+    @property
+    def is_dart(self) -> bool:
+        return self.sharp is not None and not self.boundary and int(self.sharp.sum()) == 1
+
+    @property
+    def outgoing(self) -> np.ndarray:
+        """(E, k) the spokes that leave the EP (all but a boundary ring's last)."""
+        return self.h[:, :-1] if self.boundary else self.h
+
+    @property
+    def patches(self) -> list[int]:
+        return [i for i in range(self.n) if i != self.gap]
 
 
-def ep_groups(topo: Topology, eps: np.ndarray) -> list[EPGroup]:
-    """The rings of all EPs, grouped by valence, without a Python loop over EPs."""
+def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.ndarray:
+    """(n,) angle of every patch of a ring with sharp spokes (``features``): each sector's sum
+    (pi at a crease vertex, pi / 2 at a corner; 2 pi when an interpolated vertex has no sharp
+    spoke) shared equally by its patches; NaN for a boundary ring's gap."""
+    n = sharp.size
+    theta = np.full(n, np.nan)
+    if not sharp.any() or (not boundary and sharp.sum() == 1):  # no sector ends, or a dart
+        theta[:] = 2 * np.pi / n
+        return theta
+    total = CORNER_SECTOR if interpolated else CREASE_SECTOR
+    start = int(np.flatnonzero(sharp)[0])
+    sector: list[int] = []
+    for step in range(1, n + 1):
+        patch = (start + step - 1) % n
+        sector.append(patch)
+        if sharp[(start + step) % n]:
+            if not (boundary and sector == [n - 1]):
+                theta[sector] = total / len(sector)
+            sector = []
+    return theta
+
+
+def ep_groups(topo: Topology, eps: np.ndarray, feats: Features | None = None) -> list[EPGroup]:
+    """The rings of all EPs, grouped by valence (and sharp pattern), without a Python loop over
+    EPs.  With ``feats``, EPs that are sector vertices (sharp spokes, boundary fans, corners)
+    carry their sharp spokes and fixed sector angles."""
     eps = np.asarray(eps, dtype=np.int64)
-    valence = topo.valence[eps]
     spoke_index = np.full(topo.origin.size, -1, dtype=np.int64)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
+    sector = feats.sector_vertex[eps] if feats is not None else np.zeros(eps.size, dtype=bool)
+    boundary = topo.vertex_is_boundary[eps]
     raw = []
-    for n in np.unique(valence).tolist():
-        vs = eps[valence == n]
-        h = np.empty((vs.size, n), dtype=np.int64)
-        h[:, 0] = topo.outgoing[vs]
-        for i in range(1, n):
-            h[:, i] = topo.rotate(h[:, i - 1])
-        spoke_index[h] = np.arange(n)[None, :]
-        raw.append((n, vs, h))
+    for b in (False, True):
+        for sec in (False, True):
+            sel = (boundary == b) & (sector == sec)
+            for n in np.unique(topo.valence[eps[sel]]).tolist():
+                vs = eps[sel & (topo.valence[eps] == n)]
+                h = np.empty((vs.size, n), dtype=np.int64)
+                h[:, 0] = topo.outgoing[vs]
+                for i in range(1, n - b):
+                    h[:, i] = topo.rotate(h[:, i - 1])
+                if b:  # the incoming boundary half-edge closes the fan
+                    h[:, n - 1] = topo.prev[h[:, n - 2]]
+                spoke_index[h[:, : n - b]] = np.arange(n - b)[None, :]
+                if not sec:
+                    raw.append((n, vs, h, None, b, None))
+                    continue
+                pattern = feats.sharp[topo.edge_of[h]]
+                interpolated = feats.corner[vs]
+                key = np.concatenate([pattern, interpolated[:, None]], axis=1)
+                uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+                for u, row in enumerate(uniq):
+                    pick = inverse.ravel() == u
+                    raw.append((n, vs[pick], h[pick], row[:n].copy(), b, _sector_angles(row[:n], b, bool(row[n]))))
     groups = []
     offsets = topo.mesh.face_offsets
-    for n, vs, h in raw:
+    for n, vs, h, sharp, b, theta in raw:
         faces = topo.face[h]
         ends = topo.dest[h]
         far = np.where(is_ep[ends], ends, -1)
-        groups.append(
-            EPGroup(n, vs, h, topo.halfedge_interval[h], faces, h - offsets[faces], far, np.where(far >= 0, spoke_index[topo.twin[h]], -1))
-        )
+        far_spoke = np.where(far >= 0, spoke_index[np.maximum(topo.twin[h], 0)], -1)
+        if b:
+            faces[:, -1] = -1
+            ends[:, -1] = topo.origin[h[:, -1]]
+            far[:, -1] = -1
+            far_spoke[:, -1] = -1
+        corner = np.where(faces >= 0, h - offsets[np.maximum(faces, 0)], 0)
+        if sharp is not None:  # no G1 across sharp spokes: nothing to share with their far end
+            far[:, sharp] = -1
+            far_spoke[:, sharp] = -1
+        groups.append(EPGroup(n, vs, h, topo.halfedge_interval[h], faces, corner, far, far_spoke, sharp, bool(b), theta))
     return groups
 
 
@@ -172,7 +258,7 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 
 
 @lru_cache(maxsize=4096)
-def _red_operator(n: int, key: tuple) -> np.ndarray:
+def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 NaN for a regular far end.
@@ -180,13 +266,22 @@ def _red_operator(n: int, key: tuple) -> np.ndarray:
     extraction's differences D under G_0; every input is then in the anchors' plane, so the
     tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to stage 1 and the
     extraction under G_1, with P00 and s kept (the paper takes q from G_1 alone, dividing by
-    4 b_i, which vanishes at valence 4 and in symmetric configurations)."""
+    4 b_i, which vanishes at valence 4 and in symmetric configurations).
+
+    Sharp features (section 4.2): ``skip[i]`` marks a sharp spoke, which has no G1 constraint;
+    ``pinned[i]`` one that also keeps its extraction values s_i, q_i (the crease curve; all
+    sharp spokes but a dart's); ``gap`` is the missing patch of a boundary fan (its face point
+    is neither read nor set)."""
+    pinned = tuple(pinned) or (False,) * n
+    skip = tuple(skip) or pinned
     size = 1 + 3 * n
     s = lambda i: 1 + (i % n)  # noqa: E731
     f = lambda i: 1 + n + (i % n)  # noqa: E731
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
     rows = {0: [], 1: []}
     for i, (aa, ab, b0, b1) in enumerate(key):
+        if skip[i]:
+            continue
         g = spoke_equations(aa, ab, b0, None if np.isnan(b1) else b1)
         # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
         # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
@@ -198,33 +293,45 @@ def _red_operator(n: int, key: tuple) -> np.ndarray:
                 row[col] += g[k, slot]
             assert np.allclose(np.delete(g[k], list(slot_to_x)), 0.0), "G_0, G_1 reach beyond the red slots"
             rows[k].append(row)
-    # Stage 1 on x1 = [P00, s, f].
+    # Stage 1 on x1 = [P00, s, f]: the held components, the differences D over present patches.
     n1 = 1 + 2 * n
-    pin = np.zeros(n1)
-    pin[0] = 1.0
-    c1 = np.vstack([r[:n1] for r in rows[0]] + [pin])
+    held = [0] + [s(i) for i in range(n) if pinned[i]] + ([f(gap)] if gap >= 0 else [])
+    free = [c for c in range(n1) if c not in held]
     diffs = []
     for i in range(n):
-        for a, b in ((s(i), 0), (f(i), s(i)), (s(i + 1), f(i))):
+        pairs = [(s(i), 0)] + ([] if i == gap else [(f(i), s(i)), (s(i + 1), f(i))])
+        for a, b in pairs:
             row = np.zeros(n1)
             row[a] += 1.0
             row[b] -= 1.0
             diffs.append(row)
     e = np.vstack(diffs)
-    z = _null_space(c1)
-    # x1 = 1 x0_hat + Z (E Z)^+ E x1_hat  (E annihilates constants).
-    k1 = z @ np.linalg.pinv(e @ z, rcond=1e-12) @ e
+    c0 = np.vstack([r[:n1] for r in rows[0]]) if rows[0] else np.zeros((0, n1))
+    # x1 = H x1_hat + F u (H keeps the held components), C0 x1 = 0, min |E x1 - E x1_hat|:
+    # u = U0 x1_hat + Z w, U0 the least-norm solution of C0 F u = -C0 H x1_hat, Z = null(C0 F).
+    hold = np.zeros((n1, n1))
+    hold[held, held] = 1.0
+    put = np.zeros((n1, len(free)))
+    put[free, np.arange(len(free))] = 1.0
+    cf = c0 @ put
+    u0 = -np.linalg.pinv(cf, rcond=1e-12) @ c0 @ hold if cf.size else np.zeros((len(free), n1))
+    z = _null_space(cf) if cf.size else np.eye(len(free))
+    ez = e @ put @ z
+    w = np.linalg.pinv(ez, rcond=1e-12) @ (e - e @ hold - e @ put @ u0)
+    k1 = hold + put @ (u0 + z @ w)
     k1[:, 0] += 1.0 - k1.sum(axis=1)
     stage1 = np.zeros((size, size))
     stage1[:n1, :n1] = k1
     stage1[n1:, n1:] = np.eye(n)  # q keeps its extraction value for now
-    # Stage 2: y = [f, q] nearest to stage 1 under G_1, P00 and s fixed.
-    c = np.vstack(rows[1])  # (n, size)
-    y = np.arange(1 + n, size)
-    cy = c[:, y]
-    correction = np.zeros((size, size))
-    correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
-    k = (np.eye(size) + correction) @ stage1
+    k = stage1
+    if rows[1]:
+        # Stage 2: y = [f, q] nearest to stage 1 under G_1, P00 and s fixed (and held ones).
+        c = np.vstack(rows[1])
+        y = np.array([f(i) for i in range(n) if i != gap] + [q(i) for i in range(n) if not pinned[i]])
+        cy = c[:, y]
+        correction = np.zeros((size, size))
+        correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
+        k = (np.eye(size) + correction) @ stage1
     k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
     return k
@@ -260,10 +367,13 @@ class G1Assembly:
         beta0 = np.full(topo.origin.size, np.nan)
         self.beta0 = []
         for g in groups:
-            uniq, inverse = _unique_rows(g.d)
-            b = np.array([-np.asarray(angle_configuration(row, mode=angles).b) for row in uniq])
-            b0 = b[inverse].reshape(g.d.shape)  # beta(0) per spoke (g1_constraints sign)
-            beta0[g.h] = b0
+            if g.theta is None:
+                uniq, inverse = _unique_rows(g.d)
+                b = np.array([-np.asarray(angle_configuration(row, mode=angles).b) for row in uniq])
+                b0 = b[inverse].reshape(g.d.shape)  # beta(0) per spoke (g1_constraints sign)
+            else:
+                b0 = _sector_beta(g)
+            beta0[g.outgoing] = b0[:, : g.outgoing.shape[1]]
             self.beta0.append(b0)
         self.beta1 = [np.where(g.far >= 0, beta0[topo.twin[g.h]], np.nan) for g in groups]
 
@@ -283,21 +393,36 @@ class G1Assembly:
     def red(self, mixer: RowMixer) -> None:
         for k, g in enumerate(self.groups):
             n = g.n
+            pinned = tuple(bool(x) for x in g.pinned)
             keys = self.spoke_keys(k).reshape(len(g.vertices), 4 * n)
             uniq, inverse = _unique_rows(keys)
-            ops = np.array([_red_operator(n, tuple(map(tuple, row.reshape(n, 4).tolist()))) for row in uniq])
-            i = np.arange(n)
-            src = np.concatenate(
-                [self.rows(g, 0, 0, 0)[:, None]]
-                + [np.stack([self.rows(g, ii, a, b) for ii in i], 1) for a, b in ((1, 0), (1, 1), (2, 0))],
+            skip = tuple(bool(x) for x in g.unconstrained)
+            ops = np.array(
+                [_red_operator(n, tuple(map(tuple, row.reshape(n, 4).tolist())), pinned, g.gap, skip) for row in uniq]
+            )
+            present = g.patches
+
+            def source(i: int, j: int, m: int, mirror: tuple[int, int]) -> np.ndarray:
+                # slot (j, m) of patch i, read from patch i - 1 at ``mirror`` across a gap
+                return self.rows(g, i, j, m) if i != g.gap else self.rows(g, i - 1, *mirror)
+
+            src = np.stack(
+                [self.rows(g, present[0], 0, 0)]
+                + [source(i, 1, 0, (0, 1)) for i in range(n)]
+                + [source(i, 1, 1, (0, 0)) for i in range(n)]  # a gap's face point: unused
+                + [source(i, 2, 0, (0, 2)) for i in range(n)],
                 axis=1,
             )
-            # targets and the unknown each takes
+            # targets and the unknown each takes; sharp spokes keep the crease curve
             tgt, unknown = [], []
+            for ii in present:
+                tgt += [self.rows(g, ii, 0, 0), self.rows(g, ii, 1, 1)]
+                unknown += [0, 1 + n + ii]
             for ii in range(n):
-                tgt += [self.rows(g, ii, 0, 0), self.rows(g, ii, 1, 0), self.rows(g, ii - 1, 0, 1),
-                        self.rows(g, ii, 1, 1), self.rows(g, ii, 2, 0), self.rows(g, ii - 1, 0, 2)]
-                unknown += [0, 1 + ii, 1 + ii, 1 + n + ii, 1 + 2 * n + ii, 1 + 2 * n + ii]
+                if pinned[ii]:
+                    continue
+                tgt += [self.rows(g, ii, 1, 0), self.rows(g, ii - 1, 0, 1), self.rows(g, ii, 2, 0), self.rows(g, ii - 1, 0, 2)]
+                unknown += [1 + ii, 1 + ii, 1 + 2 * n + ii, 1 + 2 * n + ii]
             weights = ops[inverse][:, unknown, :]  # (E, T, S)
             mixer.set(np.stack(tgt, 1), src, weights)
 
@@ -305,7 +430,7 @@ class G1Assembly:
         weights = np.array([[0.1, -0.5, 1.0, 0.5, -0.1]] * 2)  # P00, P10, P20, P40, P50
         for g in self.groups:
             for i in range(g.n):
-                sel = g.far[:, i] < 0
+                sel = (g.far[:, i] < 0) & ~g.pinned[i]
                 if not sel.any():
                     continue
                 src = np.stack([self.rows(g, i, j, 0)[sel] for j in (0, 1, 2, 4, 5)], 1)
@@ -316,6 +441,8 @@ class G1Assembly:
         for k, g in enumerate(self.groups):
             keys = self.spoke_keys(k)
             for i in range(g.n):
+                if g.unconstrained[i]:
+                    continue
                 # a spoke between two EPs is solved once, from its lower-id end
                 sel = (g.far[:, i] < 0) | (g.far[:, i] > g.vertices)
                 if not sel.any():
@@ -336,6 +463,24 @@ class G1Assembly:
         src = base[:, None] + np.arange(36)[None, :]
         tgt = base[:, None] + np.array([6 * 2 + 2, 6 * 3 + 2, 6 * 2 + 3, 6 * 3 + 3])[None, :]
         mixer.set(tgt, src, blue_weights())
+
+
+def _sector_beta(g: EPGroup) -> np.ndarray:
+    """(E, n) beta(0) of every spoke of a ring with fixed sector angles; NaN on sharp spokes.
+
+    Inside a sector of angle theta per patch, the fan v_i = d_i (cos phi_i, sin phi_i) (seed
+    002 eq. 5 holds with l_i = d_i) satisfies alpha_i v_{i+1} + gamma_i v_{i-1} = 2 d_{i-1}
+    d_i d_{i+1} cos(theta) v_i / d_i, so beta_i(0) = 2 d_{i-1} d_{i+1} cos(theta) (the
+    ``angle_configuration`` b with the g1_constraints sign, [32]'s uniform rule per sector).
+    With these lengths the two crease legs of a sector of angle pi come out in the ratio of
+    their intervals, the ratio in which the crease B-spline's Bezier legs stand, so G_0 of the
+    inner spokes is consistent with both pinned crease legs (a fitted fan need not be)."""
+    theta_before = np.roll(g.theta, 1)
+    beta = 2 * np.roll(g.d, 1, axis=1) * np.roll(g.d, -1, axis=1) * np.cos(g.theta)[None, :]
+    beta[:, g.unconstrained] = np.nan
+    smooth = ~g.unconstrained
+    assert np.allclose(theta_before[smooth], g.theta[smooth]), "a smooth spoke inside one sector"
+    return beta
 
 
 @lru_cache(maxsize=65536)

@@ -19,10 +19,11 @@ import scipy.sparse as sp
 from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
-from .bezier_extraction import cubic_extraction
+from .bezier_extraction import cubic_extraction, regular_face_points
 from .errors import KnotError, UnsupportedError
+from .features import Features, features
 from .g1_patches import G1Assembly, RowMixer, ep_groups
-from .mesh import INFINITELY_SHARP, ControlMesh
+from .mesh import ControlMesh
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
@@ -76,81 +77,6 @@ class SurfaceOperator:
         return np.asarray(self.matrix.sum(axis=1)).ravel()
 
 
-def _refuse_unsupported(topo: Topology) -> None:
-    """Refuse, with the place named, what later issues will build: never a wrong surface.
-
-    Infinitely sharp creases are built where they run straight through regular vertices (two
-    opposite sharp edges at an interior valence-4 vertex) and no face around an EP touches
-    them; darts, corners, turning creases and creases at or next to EPs are refused."""
-    mesh = topo.mesh
-    sharp = sharp_edges(topo)
-    if sharp.any():
-        _refuse_unsupported_creases(topo, sharp)
-    corners = [v for v, s in mesh.corners.items() if s > 0]
-    if corners:
-        raise UnsupportedError(
-            f"corner tag on vertex {corners[0]}: infinitely sharp corners are not supported yet",
-            mesh.where("corner", corners[0]),
-        )
-
-
-def sharp_edges(topo: Topology) -> np.ndarray:
-    """(e,) bool: infinitely sharp edges, and the open boundary when it is interpolated
-    (interpolateboundary 1 or 2, DESIGN 1: boundary edges are infinitely sharp creases)."""
-    sharp = topo.edge_sharpness >= INFINITELY_SHARP
-    if topo.mesh.interpolate_boundary in (1, 2):
-        sharp = sharp | topo.edge_is_boundary
-    return sharp
-
-
-def corner_vertices(topo: Topology) -> np.ndarray:
-    """(n,) bool: boundary vertices with one face, interpolated as corners under
-    interpolateboundary 1 (mode 2 smooths them: the boundary crease turns through them)."""
-    if topo.mesh.interpolate_boundary != 1:
-        return np.zeros(topo.n_vertices, dtype=bool)
-    return topo.vertex_is_boundary & (topo.valence == 2)
-
-
-def _refuse_unsupported_creases(topo: Topology, sharp: np.ndarray) -> None:
-    mesh = topo.mesh
-    count = np.bincount(topo.edges[sharp].ravel(), minlength=topo.n_vertices)
-
-    def refuse(v: int, why: str) -> None:
-        e = int(np.flatnonzero(sharp & (topo.edges == v).any(axis=1))[0])
-        a, b = (int(x) for x in topo.edges[e])
-        raise UnsupportedError(f"crease through vertex {v}: {why} not supported yet", mesh.where("crease", (a, b)))
-
-    for v in np.flatnonzero(count > 0).tolist():
-        if topo.vertex_is_boundary[v]:
-            if topo.valence[v] > 3:
-                refuse(v, f"a boundary vertex of valence {int(topo.valence[v])} is")
-            if topo.valence[v] == 2 and mesh.interpolate_boundary == 2:
-                refuse(v, "a smoothed corner (interpolateboundary 2 at a vertex with one face) is")
-            if count[v] != 2:
-                refuse(v, "a crease reaching an open boundary is")
-            continue
-        if topo.valence[v] != 4:
-            refuse(v, f"creases through extraordinary points (valence {int(topo.valence[v])}) are")
-        if count[v] == 1:
-            refuse(v, "a crease ending inside the mesh (a dart) is")
-        if count[v] > 2:
-            refuse(v, f"{int(count[v])} sharp edges meeting (a corner) are")
-        flags = sharp[topo.edge_of[topo.one_ring(v)]]
-        if not (flags[0] == flags[2] and flags[1] == flags[3]):
-            refuse(v, "a crease turning at a regular vertex is")
-    # The G1 construction at an EP assumes smooth (C1) far sides on its faces.
-    base = mesh.face_offsets[:-1]
-    face_sharp = sharp[topo.edge_of[base[:, None] + np.arange(4)]].any(axis=1)
-    for v in topo.extraordinary.tolist():
-        touched = topo.face[topo.one_ring(v)]
-        if face_sharp[touched].any():
-            f = int(touched[face_sharp[touched]][0])
-            raise UnsupportedError(
-                f"crease on face {f} around the extraordinary point {v}: not supported yet",
-                mesh.where("face", f),
-            )
-
-
 def build_operator(
     mesh: ControlMesh,
     topology: Topology | None = None,
@@ -191,7 +117,7 @@ def build_operator(
             composed = (step @ composed).tocsr()
         inner = build_operator(refined, angles=angles, anchors=anchors)
         return SurfaceOperator((inner.matrix @ composed).tocsr(), inner.groups, inner.topology, mesh.name)
-    _refuse_unsupported(topo)
+    feats = features(topo)
     spans = face_spans(topo)
     _refuse_torn_knots(topo, spans)
     # Hole faces (OpenSubdiv's `t hole`) give no patch; their control points still shape the
@@ -200,21 +126,19 @@ def build_operator(
     has_patch[list(mesh.holes)] = False
     faces = np.flatnonzero(has_patch)
     _refuse_boundary_patches(topo, faces)
-    eps = np.union1d(topo.extraordinary, np.asarray(force_extraordinary, dtype=np.int64))
-    low = eps[topo.valence[eps] < 3]
-    if low.size:
-        v = int(low[0])
-        raise UnsupportedError(
-            f"vertex {v} has valence {int(topo.valence[v])}: valence-2 vertices are not supported yet",
-            mesh.where("vertex", v),
-        )
-    if topo.vertex_is_boundary[eps].any():
-        v = int(eps[topo.vertex_is_boundary[eps]][0])
+    # EPs: smooth interior vertices of valence != 4, and vertices whose sectors between sharp
+    # edges need anchors (features); corners and crease vertices whose fans the bicubic
+    # construction reproduces are not EPs, whatever their valence.
+    smooth = (feats.count == 0) & ~feats.corner
+    forced = np.asarray(force_extraordinary, dtype=np.int64)
+    eps = np.union1d(np.union1d(topo.extraordinary[smooth[topo.extraordinary]], forced), np.flatnonzero(feats.sector_vertex))
+    if topo.vertex_is_boundary[forced].any():
+        v = int(forced[topo.vertex_is_boundary[forced]][0])
         raise UnsupportedError(f"vertex {v} is on a boundary: it cannot be forced extraordinary", mesh.where("vertex", v))
     _refuse_degenerate_eps(topo, eps)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
-    extraction = cubic_extraction(topo, is_ep, sharp_edge=sharp_edges(topo), corner_vertex=corner_vertices(topo))
+    extraction = cubic_extraction(topo, is_ep, sharp_edge=feats.sharp, corner_vertex=feats.corner)
     n, n_anchor = extraction.n_points, extraction.n_anchors
     irregular_face = is_ep[mesh.quads()].any(axis=1)
     cubic_faces = faces[~irregular_face[faces]]
@@ -229,7 +153,7 @@ def build_operator(
         face_row[all_irregular] = 36 * np.arange(all_irregular.size)
         elevate = sp.kron(sp.identity(all_irregular.size), sp.csr_matrix(elevation_matrix_2d(3, 5)), format="csr")
         src = (16 * all_irregular[:, None] + np.arange(16)).ravel()
-        groups_ep = ep_groups(topo, eps)
+        groups_ep = ep_groups(topo, eps, feats)
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
         # Compose the row mixings first (few entries per row), then apply them once to the
         # extraction rows, whose rows are long: far cheaper than four passes over long rows.
@@ -243,20 +167,37 @@ def build_operator(
         blocks.append(rows[keep])
         groups.append(OperatorGroup(5, quintic_faces, int(cubic_rows.size)))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
-        anchor_rows = anchor_matrix(topo, groups_ep, extraction.anchor_column, n, rule=rule)
+        smooth_groups = [g for g in groups_ep if g.theta is None]
+        anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, rule=rule)
+        anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
     stacked = sp.vstack(blocks).tocsr()  # rows over [control points | anchors]
     if anchors == "faired" and n_anchor:
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
-        sets = [extraction.anchor_column[g.h[e]] - n for g in groups_ep for e in range(len(g.vertices))]
+        sets = [extraction.anchor_column[g.h[e]] - n for g in smooth_groups for e in range(len(g.vertices))]
         anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
     matrix = (stacked[:, :n] + stacked[:, n:] @ anchor_rows).tocsr()
     matrix.eliminate_zeros()
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
     return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
+
+
+def _sector_anchors(topo: Topology, feats: Features, groups, anchor_column: np.ndarray, n_points: int) -> sp.csr_matrix:
+    """(n_anchors, n_points): the anchors of sector EPs (sharp spokes, boundary fans, corners),
+    each its corner's double-knot face point with mirrored neighbours across sharp edges
+    (``bezier_extraction.regular_face_points``).  Section 3.5's eigen-polyhedron rule is
+    defined for whole rings only; for a sector the G1 solve's first stage fits the tangent
+    plane through the pinned crease legs instead."""
+    n_anchors = int(np.count_nonzero(anchor_column >= 0))
+    corners = np.concatenate([g.outgoing.ravel() for g in groups if g.theta is not None] + [np.zeros(0, np.int64)])
+    if corners.size == 0:
+        return sp.csr_matrix((n_anchors, n_points))
+    points = regular_face_points(topo, feats.sharp)[corners].tocoo()
+    rows = anchor_column[corners][points.row] - n_points
+    return sp.csr_matrix((points.data, (rows, points.col)), shape=(n_anchors, n_points))
 
 
 #: Most subdivision steps (and faces after them) spent on semi-sharp features before patching.

@@ -45,9 +45,22 @@ def test_non_uniform_open_grid_is_a_valid_g1_shell(seed):
     assert report.n_free_edges == 2 * (6 + 5)
 
 
-def test_smoothed_corners_of_mode_2_are_refused_for_now():
-    with pytest.raises(patching.UnsupportedError, match="smoothed corner"):
-        patching.build_operator(jittered_grid(5, 5, mode=2))
+@pytest.mark.parametrize("ratio", [1.0, 6.0])
+def test_mode_2_smooths_the_corners_the_boundary_is_one_closed_bspline(ratio):
+    """interpolateboundary 2: a boundary vertex with one face is a crease vertex, not a corner,
+    so the whole boundary is one closed cubic B-spline of the boundary polygon (OpenSubdiv's
+    boundary curve in that mode), and the patches are G1 inside."""
+    from tests.edge_checks import crease_deviation, edge_jumps
+
+    from tests.test_g1_patches import with_random_intervals
+
+    mesh = with_random_intervals(jittered_grid(5, 5, mode=2), ratio, seed=4)
+    surface = patching.build(mesh)
+    _, gaps, angles, sharp = edge_jumps(mesh, surface)
+    assert angles[~sharp].max() <= 1e-7 and gaps.max() <= 1e-12 * surface.size
+    assert crease_deviation(mesh, surface) <= 1e-12 * surface.size
+    corner = surface.groups[0].coefficients[0][0, 0]
+    assert np.linalg.norm(corner - mesh.vertices[0]) > 1e-3 * surface.size  # not interpolated
 
 
 def test_hole_faces_give_no_patch_and_leave_their_neighbours_unchanged():

@@ -127,9 +127,9 @@ def test_check_refuses_an_obj(tmp_path, run_cli):
 
 def test_unsupported_features_are_refused_not_built_wrong(tmp_path, run_cli):
     mesh = tmp_path / "t.obj"
-    mesh.write_text(torus_obj(extra="t crease 2/1/0 0 1 10\n"))
+    mesh.write_text(torus_obj(extra="t crease 2/1/0 0 1 9\n"))  # 9 global steps: too many
     out = tmp_path / "t.step"
-    _assert_refused(run_cli("build", mesh, "-o", out), "not supported yet", "t.obj:33")
+    _assert_refused(run_cli("build", mesh, "-o", out), "needs 9 subdivision steps", "t.obj:33")
     assert not out.exists()
 
 

@@ -138,20 +138,3 @@ def _jumps_off_crease(surface) -> float:
         angle = np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), (n1 * n2).sum(1))
         worst = max(worst, float(np.degrees(angle).max()))
     return worst
-
-
-def test_unsupported_crease_shapes_are_refused_naming_the_place():
-    mesh = torus_grid(M, N)
-    faces = mesh.quads()
-    dart = {(idx(2, 0), idx(2, 1)): 10.0, (idx(2, 1), idx(2, 2)): 10.0}
-    with pytest.raises(patching.UnsupportedError, match="dart"):
-        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=dart))
-    corner = {(idx(2, b), idx(2, b + 1)): 10.0 for b in range(N)}
-    corner[(idx(2, 0), idx(3, 0))] = 10.0
-    with pytest.raises(patching.UnsupportedError, match="corner"):
-        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=corner))
-    turn = {(idx(2, 0), idx(2, 1)): 10.0, (idx(2, 1), idx(3, 1)): 10.0}
-    turn.update({(idx(3, b), idx(3, b + 1)): 10.0 for b in range(1, N)})
-    turn.update({(idx(2, b), idx(2, b + 1)): 10.0 for b in range(N) if b not in (1,)})
-    with pytest.raises(patching.UnsupportedError):
-        patching.build_operator(patching.from_arrays(mesh.vertices, faces, creases=turn))

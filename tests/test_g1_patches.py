@@ -15,12 +15,14 @@ from patching.topology import Topology
 from tests.conftest import SHAPES
 
 
+CUBE_VERTICES = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+CUBE_FACES = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+
+
 def quad_mesh_with_eps(kind: str) -> patching.ControlMesh:
     """Closed all-quad meshes with EPs: one Catmull-Clark step of small polyhedra."""
     if kind == "cube":
-        v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
-        f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-        return patching.from_arrays(v, f, name="cube")
+        return patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
     n = int(kind.split("-")[1])  # bipyramid-n: apexes of valence n after one step
     ang = 2 * np.pi * np.arange(n) / n
     v = np.vstack([np.stack([np.cos(ang), np.sin(ang), 0 * ang], 1), [[0, 0, 1.3], [0, 0, -1.3]]])
@@ -99,12 +101,14 @@ def test_broken_constraint_is_detected():
     assert angle > 0.1
 
 
-def test_forced_valence_4_ep_with_uniform_intervals_is_the_bicubic_bspline():
+@pytest.mark.parametrize("anchors", ["eigen-polyhedron", "extraction"])
+def test_forced_valence_4_ep_with_uniform_intervals_is_the_bicubic_bspline(anchors):
+    """Both anchor rules; the default one through auxiliary_points' step 5 (the twist)."""
     mesh = torus_grid(8, 7)
     rng = np.random.default_rng(2)
     mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.1, size=mesh.vertices.shape))
     plain = patching.build_operator(mesh).evaluate(mesh.vertices)
-    forced = patching.build_operator(mesh, force_extraordinary=[10], anchors="extraction").evaluate(mesh.vertices)
+    forced = patching.build_operator(mesh, force_extraordinary=[10], anchors=anchors).evaluate(mesh.vertices)
     cubic = {int(f): n for f, n in zip(plain.groups[0].faces, plain.groups[0].coefficients)}
     e = elevation_matrix(3, 5)
     quintic = [g for g in forced.groups if g.degree == 5][0]
@@ -307,11 +311,19 @@ def test_non_quad_faces_are_subdivided_once_and_patched():
         patching.build_operator(uneven)
 
 
-def test_valence_two_vertex_is_refused_naming_it():
-    mesh = quad_mesh_with_eps("cube")
-    # two quads glued along three edges leave valence-2 vertices: refused, never wrong
-    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
-    flat = patching.from_arrays(v, [[0, 1, 2, 3], [0, 3, 2, 1]], name="pillow")
-    with pytest.raises(patching.UnsupportedError, match="valence"):
-        patching.build_operator(flat)
-    assert mesh.n_faces == 6
+@pytest.mark.parametrize("ratio", [1.0, 5.0, 20.0])
+def test_valence_two_vertex_is_a_g1_pair_of_flat_corners(ratio):
+    """A cube side split into two quads that share two consecutive edges: the vertex between
+    them has valence 2.  It takes the EP path with angles pi (features): G1 across both
+    edges, a valid solid."""
+    from export import check_continuity, to_shape
+
+    v = np.vstack([CUBE_VERTICES, [[-0.2, 0.5, 0.5]]])
+    f = [[0, 1, 8, 2], [1, 3, 2, 8]] + CUBE_FACES[1:]
+    mesh = with_random_intervals(patching.from_arrays(v, f, name="val2"), ratio, seed=1)
+    assert patching.Topology(mesh).valence[8] == 2
+    surface = patching.build(mesh)
+    angle, gap = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-7 and gap <= 1e-12
+    report = check_continuity(to_shape(surface))
+    assert report.valid and report.n_solids == 1 and report.max_smooth_normal_jump_deg <= 1e-6

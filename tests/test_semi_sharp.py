@@ -41,9 +41,14 @@ def test_semi_sharp_cube_is_a_g1_solid_acting_on_the_original_points(s):
     assert angle <= 1e-7 and gap <= 1e-12 * surface.size
 
 
-def test_infinitely_sharp_creases_are_still_refused():
-    with pytest.raises(patching.UnsupportedError, match="crease"):
-        patching.build_operator(creased_cube(10.0))
+def test_infinitely_sharp_cube_is_where_the_semi_sharp_ones_converge():
+    """Sharpness 10: every vertex a corner with single-face sectors, the patches are the cube's
+    squares (tests/test_sharp_features.py), so the edge midpoint lies on the surface; the
+    semi-sharp cubes approach it monotonically."""
+    sharp = distance_to_cube_edge(patching.build(creased_cube(10.0)))
+    assert sharp <= 1e-12
+    d = [distance_to_cube_edge(patching.build(creased_cube(s))) for s in (1.0, 2.0, 3.0)]
+    assert d[0] > d[1] > d[2] > sharp
 
 
 def test_too_many_steps_are_refused_naming_the_crease():

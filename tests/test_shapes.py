@@ -1,18 +1,36 @@
 """Every catmark_* shape of OpenSubdiv's regression suite (../shared/opensubdiv-shapes), with
 its tags and with random strip intervals: it builds a valid solid (closed) or shell (open),
-G1 off its sharp edges, or is refused with one line of the error family.  Issue 4 will turn
-the refusals into builds; this test keeps every shape from crashing meanwhile."""
+G1 off its sharp edges and on the crease B-spline along them, or is refused with one line of
+the error family (non-manifold input; the refusals left are listed in the issue note)."""
 
 import warnings
 
+import numpy as np
 import pytest
 
 import patching
 from patching.errors import NupatchError
 from tests.conftest import shape_files
+from tests.edge_checks import crease_deviation, edge_jumps, patched_mesh
 from tests.test_g1_patches import with_random_intervals
 
 SHAPES = shape_files("catmark_")
+
+#: The shapes that are refused, and why: non-manifold input (the issue's acceptance), flat
+#: pillows that enclose no volume, and semi-sharp values that need more global subdivision
+#: steps than are done before patching (local refinement is the next step; issue note).
+REFUSALS = {
+    "catmark_fan": "non-manifold",
+    "catmark_gregory_test4": "non-manifold",
+    "catmark_nonman_quadpole8": "repeats vertex",
+    "catmark_val2_back2back": "no volume|valence 2",  # random intervals: subdivision refuses
+    "catmark_pawn": "subdivision steps",
+    "catmark_helmet": "subdivision steps",
+    "catmark_hole_test2": "subdivision steps",
+    "catmark_gregory_test7": "subdivision steps",
+}
+#: Random strip intervals around a triangle or pentagon have no consistent split (issue note).
+RANDOM_REFUSAL = "unequal knot intervals"
 
 
 @pytest.mark.skipif(not SHAPES, reason="../shared/opensubdiv-shapes is absent")
@@ -20,6 +38,7 @@ SHAPES = shape_files("catmark_")
 @pytest.mark.parametrize("intervals", ["uniform", "random"])
 def test_shape_builds_or_is_refused_in_one_line(path, intervals):
     from export import check_continuity, to_shape
+    from export.brep import patch_components
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -28,15 +47,26 @@ def test_shape_builds_or_is_refused_in_one_line(path, intervals):
             if intervals == "random":
                 mesh = with_random_intervals(mesh, 5.0, seed=len(path.stem))
             surface = patching.build(mesh)
+            # a closed surface of no volume (catmark_val2_back2back's flat pillows) is refused
+            # here, as `nupatch build` does
+            shape = to_shape(surface)
         except NupatchError as exc:
-            assert str(exc) and "\n" not in str(exc)
+            message = str(exc)
+            assert message and "\n" not in message
+            expected = REFUSALS.get(path.stem) or (RANDOM_REFUSAL if intervals == "random" else None)
+            assert expected and any(e in message for e in expected.split("|")), f"unexpected refusal: {message}"
             return
-    report = check_continuity(to_shape(surface))
+    report = check_continuity(shape)
     assert report.valid and report.max_gap_relative <= 1e-9
+    labels, closed = patch_components(surface.topology)
+    assert report.n_shells == closed.size  # one shell (or solid) per connected piece
+    assert report.n_solids == np.count_nonzero(closed)
     if surface.topology.is_closed:
-        assert report.n_solids == 1 and report.n_free_edges == 0
-    else:
-        assert report.n_shells == 1
-    # G1 wherever the surface is meant to be smooth: edges measured below the sharp-edge
-    # threshold of the report must be round-off
-    assert report.max_smooth_normal_jump_deg <= 1e-6 or report.n_sharp_edges > 0
+        assert report.n_free_edges == 0
+    # G1 across every smooth edge and the crease B-spline along every sharp edge, measured
+    # with numpy on the mesh that is patched (after the steps for semi-sharp tags and n-gons)
+    patched = patched_mesh(mesh)
+    _, gaps, angles, sharp = edge_jumps(patched, surface)
+    assert gaps.max(initial=0.0) <= 1e-12 * surface.size
+    assert angles[~sharp].max(initial=0.0) <= 1e-6
+    assert crease_deviation(patched, surface) <= 1e-9 * surface.size

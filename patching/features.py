@@ -1,0 +1,158 @@
+"""Sharp features of a control mesh as the patch construction sees them (seed 002 section 4.2).
+
+Infinitely sharp edges (sharpness >= 10, and the open boundary when it is interpolated) cut the
+faces around a vertex into *sectors*: maximal fans of faces between two sharp edges.  Section
+4.2 treats each sector on its own: the crease curve is the cubic B-spline of its polygon
+(triple knots: nothing crosses it), the angles of a sector add up to pi where a crease runs on
+through the vertex, and no G1 constraint crosses a sharp spoke.  So every sector is, locally, a
+boundary fan of an open mesh cut along its sharp edges, and needs anchors (the EP path of
+seed 002 section 3) unless it is one of the fans the bicubic construction already reproduces:
+
+* one face: a corner (the patch keeps the control point), or a crease turning through the
+  vertex (the patch corner is flat);
+* two faces at a crease vertex that is not a corner: the regular crease/boundary fan.
+
+A vertex is a *corner* when it carries a corner tag >= 10, when three or more sharp edges meet,
+or (interpolateboundary 1) when it is a boundary vertex with one face.  Two sharp edges and no
+tag make a crease vertex, whatever the angle between them (OpenSubdiv's rule).  One sharp edge
+at an interior vertex is a dart: the crease fades out there (seed 000 section 4's dart vertex
+takes the smooth rule), so the vertex keeps the smooth vertex point and its ring is one sector
+of 2 pi in which the sharp spoke only loses its G1 constraint (its curve is not pinned to the
+crease polygon, whose B-spline would end at the control point).  An interior vertex of
+valence 2 gets the EP path too, its two patches meeting at flat (pi) corners.
+
+Sector angles (section 4.2 gives only the crease rule):
+* crease vertex: pi per sector (the paper), the open boundary included;
+* corner: pi / 2 per sector, Biermann-Levin-Zorin's convex corner (seed 000 section 2: convex
+  unless tagged), which is never pi, so the two crease legs fix the sector's tangent plane;
+* corner tag on a vertex without sharp edges, and a dart: one sector of 2 pi (2 pi / n per
+  patch); the tagged vertex is interpolated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mesh import INFINITELY_SHARP
+from .topology import Topology
+
+__all__ = ["Features", "features", "sharp_edges", "corner_vertices"]
+
+CREASE_SECTOR = np.pi
+CORNER_SECTOR = np.pi / 2
+
+
+def sharp_edges(topo: Topology) -> np.ndarray:
+    """(e,) bool: infinitely sharp edges, and the open boundary when it is interpolated
+    (interpolateboundary 1 or 2, DESIGN 1: boundary edges are infinitely sharp creases)."""
+    sharp = topo.edge_sharpness >= INFINITELY_SHARP
+    if topo.mesh.interpolate_boundary in (1, 2):
+        sharp = sharp | topo.edge_is_boundary
+    return sharp
+
+
+def corner_vertices(topo: Topology, sharp: np.ndarray | None = None) -> np.ndarray:
+    """(n,) bool: interpolated corners: corner tag >= 10, three or more sharp edges, or a
+    boundary vertex with one face under interpolateboundary 1 (mode 2 smooths those: the
+    boundary crease turns through them)."""
+    if sharp is None:
+        sharp = sharp_edges(topo)
+    count = np.bincount(topo.edges[sharp].ravel(), minlength=topo.n_vertices)
+    corner = count >= 3
+    tagged = [v for v, s in topo.mesh.corners.items() if s >= INFINITELY_SHARP]
+    corner[tagged] = True
+    if topo.mesh.interpolate_boundary == 1:
+        corner |= topo.vertex_is_boundary & (topo.valence == 2)
+    return corner & topo.vertex_is_used
+
+
+@dataclass(frozen=True)
+class Features:
+    """Sharp edges, corners and the vertices whose sectors need the EP path.
+
+    sharp: (e,) bool.  count: (n,) sharp edges per vertex.  corner: (n,) bool.
+    crease_partner_interval: (n,) the sum of the sharp edges' intervals at a vertex; at a crease
+    vertex, minus one leg's interval, it is the other leg's (``partner_interval``).
+    sector_vertex: (n,) bool, vertices with sharp edges or a corner tag that need anchors.
+    dart: (n,) bool, interior vertices with exactly one sharp edge."""
+
+    sharp: np.ndarray
+    count: np.ndarray
+    corner: np.ndarray
+    sharp_interval_sum: np.ndarray
+    sector_vertex: np.ndarray
+    dart: np.ndarray
+
+    def partner_interval(self, topo: Topology, h: np.ndarray, at_origin: bool = True) -> np.ndarray:
+        """Interval of the crease leg that continues sharp half-edge h through origin(h)
+        (or dest(h)): the other sharp edge at a crease vertex; h's own (the mirrored leg, the
+        phantom 2 P_0 - P_1) at a corner, where the crease polygon ends."""
+        v = topo.origin[h] if at_origin else topo.dest[h]
+        own = topo.halfedge_interval[h]
+        other = self.sharp_interval_sum[v] - own
+        return np.where(self.corner[v] | (self.count[v] != 2), own, other)
+
+
+def features(topo: Topology) -> Features:
+    """Classify the mesh's vertices by their sharp edges (module docstring)."""
+    sharp = sharp_edges(topo)
+    n = topo.n_vertices
+    ends = topo.edges[sharp]
+    count = np.bincount(ends.ravel(), minlength=n)
+    corner = corner_vertices(topo, sharp)
+    ivs = topo.edge_interval[sharp]
+    interval_sum = np.bincount(ends.ravel(), weights=np.repeat(ivs, 2), minlength=n)
+    dart = (count == 1) & ~topo.vertex_is_boundary
+    # Sector sizes: around every vertex with sharp edges, walk the ring once per valence.
+    needs = np.zeros(n, dtype=bool)
+    candidates = np.flatnonzero((count > 0) | (corner & topo.vertex_is_used))
+    for ring, boundary in _rings(topo, candidates):
+        vs = topo.origin[ring[:, 0]]
+        spoke_sharp = sharp[topo.edge_of[ring]]
+        if boundary:  # the incoming boundary edge closes the fan: one more sharp spoke
+            spoke_sharp = np.concatenate([spoke_sharp, np.ones((len(vs), 1), dtype=bool)], axis=1)
+        largest = _largest_sector(spoke_sharp, boundary)
+        is_corner = corner[vs]
+        needs[vs] = (largest >= 3) | (is_corner & (largest == 2)) | (largest == 0)
+    # A corner tag on a vertex without sharp edges: one sector, the vertex interpolated; a
+    # dart: one sector all round, no G1 across its sharp spoke; valence 2: two flat corners.
+    needs |= corner & (count == 0) & topo.vertex_is_used
+    needs |= dart
+    needs |= (count == 0) & ~topo.vertex_is_boundary & (topo.valence == 2)
+    return Features(sharp, count, corner, interval_sum, needs, dart)
+
+
+def _rings(topo: Topology, vertices: np.ndarray):
+    """Yield (ring (E, k) of outgoing half-edges in rotation order, boundary) per valence and
+    boundary flag; a boundary ring starts at the boundary edge and has valence - 1 spokes."""
+    boundary = topo.vertex_is_boundary[vertices]
+    faces = topo.valence[vertices] - boundary
+    for b in (False, True):
+        for k in np.unique(faces[boundary == b]).tolist():
+            vs = vertices[(boundary == b) & (faces == k)]
+            ring = np.empty((vs.size, k), dtype=np.int64)
+            ring[:, 0] = topo.outgoing[vs]
+            for i in range(1, k):
+                ring[:, i] = topo.rotate(ring[:, i - 1])
+            yield ring, b
+
+
+def _largest_sector(spoke_sharp: np.ndarray, boundary: bool) -> np.ndarray:
+    """(E,) the most faces between two consecutive sharp spokes of a ring (n spokes, patch i
+    between spoke i and i+1; a boundary ring's last patch is the gap).  0 when no spoke is sharp
+    (a single sector without ends)."""
+    e, n = spoke_sharp.shape
+    patches = n - 1 if boundary else n
+    # run length of non-sharp spokes before each spoke, cyclically (twice round is enough)
+    doubled = np.concatenate([spoke_sharp, spoke_sharp], axis=1)
+    run = np.zeros(e, dtype=np.int64)
+    best = np.zeros(e, dtype=np.int64)
+    for i in range(2 * n):
+        run = np.where(doubled[:, i], 0, run + 1)
+        if not boundary or i < n:
+            best = np.maximum(best, np.where(doubled[:, i], 0, run))
+    sizes = best + 1  # faces in a sector = interior spokes + 1
+    sizes = np.minimum(sizes, patches)
+    return np.where(spoke_sharp.any(axis=1), sizes, 0)
