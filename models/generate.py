@@ -60,3 +60,44 @@ write_obj(
     HERE / "square_frame.obj",
     comment="nupatch sample: a square frame of 8 cubes (genus 1), EPs of valence 3 and 5, non-uniform intervals",
 )
+
+
+def sharp_top_and_sides(mesh, name: str):
+    """Mark the polycube's geometric edges (where the control faces on either side are
+    perpendicular) infinitely sharp, except those in the bottom plane (z = 0), which stay
+    smooth and round off: a machined top with sharp rims, and vertical arrises that fade out
+    into the soft base (darts at the bottom corners)."""
+    import numpy as np
+
+    from patching.mesh import from_arrays
+    from patching.topology import Topology
+
+    topo = Topology(mesh)
+    quads = mesh.quads()
+    p = mesh.vertices[quads]
+    normals = np.cross(p[:, 1] - p[:, 0], p[:, 3] - p[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    face_of = topo.face
+    h = np.flatnonzero(topo.twin >= 0)
+    bend = np.abs((normals[face_of[h]] * normals[face_of[topo.twin[h]]]).sum(1)) < 0.5
+    ends = topo.origin[h], topo.dest[h]
+    low = (mesh.vertices[ends[0], 2] == 0) & (mesh.vertices[ends[1], 2] == 0)
+    creases = {tuple(sorted((int(a), int(b)))): np.inf for a, b in zip(ends[0][bend & ~low], ends[1][bend & ~low])}
+    faces = [list(mesh.face(f)) for f in range(mesh.n_faces)]
+    return from_arrays(mesh.vertices, faces, intervals=dict(mesh.intervals), creases=creases, name=name)
+
+
+# A machined bracket: a plate with a notch and a square pocket through it (genus 1), sharp top
+# rims and vertical edges (corners where three meet, the concave ones valence-5 EPs with a
+# three-face sector, darts where the vertical edges reach the rounded bottom), knots crowded
+# towards the outer edges (0.4 against 1).
+write_obj(
+    sharp_top_and_sides(
+        polycube_with_tight_edges(
+            [(x, y, 0) for x in range(4) for y in range(3) if (x, y) not in {(1, 1), (3, 2)}], 2, "machined_bracket", 0.4
+        ),
+        "machined_bracket",
+    ),
+    HERE / "machined_bracket.obj",
+    comment="nupatch sample: machined bracket, sharp top rims and vertical edges, convex and concave corners, darts, intervals 0.4 / 1",
+)

@@ -176,15 +176,17 @@ def crease_bezier_curves(mesh: patching.ControlMesh) -> dict[tuple[int, int], np
 def crease_deviation(mesh: patching.ControlMesh, surface, samples: int = 9) -> float:
     """Largest distance, over every patch side on a sharp edge (boundary included), between
     the side curve and the crease B-spline at equal parameters (the patch side is the span's
-    Bezier curve, degree-elevated at EPs)."""
+    Bezier curve, degree-elevated at EPs).  Edges at a dart are left out: the crease fades out
+    there, so no B-spline of the polygon describes them."""
     from patching.bernstein import bernstein
 
     topo = Topology(mesh)
     curves = crease_bezier_curves(mesh)
     if not curves:
         return 0.0
+    dart = features(topo).dart
     keys = list(zip(topo.origin.tolist(), topo.dest.tolist()))
-    hs = np.array([h for h, key in enumerate(keys) if key in curves], dtype=np.int64)
+    hs = np.array([h for h, (a, b) in enumerate(keys) if (a, b) in curves and not (dart[a] or dart[b])], dtype=np.int64)
     patched = np.zeros(mesh.n_faces, dtype=bool)
     for g in surface.groups:
         patched[g.faces] = True
