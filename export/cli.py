@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 import warnings
@@ -482,6 +483,9 @@ def main(argv: list[str] | None = None) -> int:
             code = _fail(f"error: {exc}", 2)
         except KeyboardInterrupt:
             code = _fail("interrupted", 130)
+        except BrokenPipeError:  # the reader went away (`nupatch check x.step | head`): stop quietly
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+            code = 141
         except Exception as exc:  # a bug: say so in one line unless --debug
             if args.debug:
                 raise

@@ -1,5 +1,6 @@
 """The command line: every bad input gives exit 2, one stderr line naming the place, no file."""
 
+import os
 from pathlib import Path
 
 import pytest
@@ -335,3 +336,23 @@ def test_degenerate_geometry_is_refused_in_one_line(tmp_path, run_cli, name, pos
     out = tmp_path / "out.step"
     _assert_refused(run_cli("build", mesh, "-o", out), message)
     assert not out.exists()
+
+
+def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):
+    """`nupatch check big.step --all | head -1`: no 'internal error' when the pipe closes."""
+    import subprocess
+
+    from tests.conftest import NUPATCH, REPO
+
+    mesh = tmp_path / "big.obj"
+    mesh.write_text(torus_obj(40, 40))
+    assert run_cli("build", mesh, "-q").returncode == 0
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([*NUPATCH, "check", str(tmp_path / "big.step"), "--all"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, cwd=REPO, env=env)
+    assert proc.stdout.readline().startswith(b"valid")
+    proc.stdout.close()  # the reader goes away with most of the table unread
+    stderr = proc.stderr.read().decode()
+    proc.wait(timeout=600)
+    assert "internal error" not in stderr and "Traceback" not in stderr
+    assert proc.returncode in (0, 141)
