@@ -197,3 +197,22 @@ def crease_deviation(mesh: patching.ControlMesh, surface, samples: int = 9) -> f
     points, _ = _side_table(mesh, surface, hs, u)
     ref = np.einsum("mj,kjc->kmc", bernstein(3, u), np.array([curves[keys[h]] for h in hs]))
     return float(np.abs(points - ref).max())
+
+
+def brep_smooth_jump(mesh: patching.ControlMesh, surface) -> float:
+    """Largest normal jump (degrees) that OpenCASCADE measures on the exported B-rep
+    (export.check_continuity, DESIGN 5) over the edges between faces that share no sharp mesh
+    edge: the G1 acceptance on the B-rep, with sharp edges told apart by the mesh's tags
+    rather than by the size of the jump."""
+    from export import check_continuity
+
+    topo = Topology(mesh)
+    sharp = features(topo).sharp
+    pair_sharp: dict[tuple[int, int], bool] = {}
+    h = np.flatnonzero(topo.twin >= 0)
+    for f, g, s in zip(topo.face[h].tolist(), topo.face[topo.twin[h]].tolist(), sharp[topo.edge_of[h]].tolist()):
+        key = (min(f, g), max(f, g))
+        pair_sharp[key] = pair_sharp.get(key, False) or s
+    report = check_continuity(surface, all_edges=True)
+    jumps = [e.angle_deg for e in report.edges if not pair_sharp.get((min(e.faces), max(e.faces)), False)]
+    return max(jumps, default=0.0)

@@ -11,7 +11,7 @@ import pytest
 import patching
 from patching.errors import NupatchError
 from tests.conftest import shape_files
-from tests.edge_checks import crease_deviation, edge_jumps, patched_mesh
+from tests.edge_checks import brep_smooth_jump, crease_deviation, edge_jumps, patched_mesh
 from tests.test_g1_patches import with_random_intervals
 
 SHAPES = shape_files("catmark_")
@@ -70,3 +70,5 @@ def test_shape_builds_or_is_refused_in_one_line(path, intervals):
     assert gaps.max(initial=0.0) <= 1e-12 * surface.size
     assert angles[~sharp].max(initial=0.0) <= 1e-6
     assert crease_deviation(patched, surface) <= 1e-9 * surface.size
+    # and the same G1 measured by OpenCASCADE on the exported B-rep (DESIGN 5)
+    assert brep_smooth_jump(patched, surface) <= 1e-6
