@@ -34,7 +34,9 @@ Two rule sets (``rules``):
   points: smooth ``(a + b + F_0 + F_1) / 4``, sharp ``(a + b) / 2``, and ``s (sharp) +
   (1 - s)(smooth)`` for ``0 < s < 1``; semi-sharp vertices blend the parent and child rules
   with ``Crease::ComputeFractionalWeightAtVertex``.  Sharpness decrements by 1 a step
-  (OpenSubdiv's uniform creasing; its Chaikin option is not implemented).  Uniform intervals
+  (OpenSubdiv's uniform creasing) or, with ``crease_method="chaikin"``, by its Chaikin rule
+  (``_chaikin``: each half of an edge from the semi-sharp edges at its end; the edge and
+  vertex blends then read the halves, as ``Far::PrimvarRefiner`` does).  Uniform intervals
   only: a non-uniform mesh is refused with a KnotError.
 * ``"seed"`` (default): seed 000.  Uniform intervals: the Biermann-Levin-Zorin rules of its
   section 2 (the same vertex classification; an untagged edge next to a tagged vertex gets
@@ -125,10 +127,13 @@ __all__ = [
     "rules_tag",
     "RULE_SETS",
     "ANGLE_CHOICES",
+    "CREASE_METHODS",
 ]
 
 RULE_SETS = ("seed", "opensubdiv")
 ANGLE_CHOICES = ("standard", "modified")
+#: How semi-sharp sharpness decays a step (OpenSubdiv's Sdc::Options::CreasingMethod).
+CREASE_METHODS = ("uniform", "chaikin")
 #: Name of the OBJ tag that records the rule set: ``t nupatch_rules 0/0/1 seed``.
 RULES_TAG = "nupatch_rules"
 
@@ -141,6 +146,33 @@ def rules_tag(rules: str) -> str:
 def _decrement(s: np.ndarray) -> np.ndarray:
     """OpenSubdiv's uniform creasing: ``s - 1`` (0 when ``s <= 1``), infinite stays infinite."""
     return np.where(np.isinf(s), np.inf, np.where(s > 1.0, s - 1.0, 0.0))
+
+
+def _chaikin(es: np.ndarray, edges: np.ndarray, nv: int) -> np.ndarray:
+    """OpenSubdiv's Chaikin creasing (``Sdc::Crease::SubdivideEdgeSharpnessesAroundVertex``
+    with ``CREASE_CHAIKIN``): (e, 2) sharpness of the half of every edge at its end
+    ``edges[:, k]``.
+
+    At a vertex with c >= 2 semi-sharp edges (0 < s < infinity) a semi-sharp edge's half gets
+    ``3/4 s + 1/4 (mean of the other c - 1 semi-sharp sharpnesses) - 1`` (0 if that is <= 0);
+    with c = 1 the uniform ``s - 1``; smooth halves stay 0, infinite ones infinite.  The two
+    halves of an edge may differ (each reads its own end's neighbourhood).  A half is never
+    sharper than the largest sharpness at its end minus one, so ``ceil(max s)`` steps still
+    clear every semi-sharp tag."""
+    semi = (es > 0) & np.isfinite(es)
+    total = np.zeros(nv)
+    count = np.zeros(nv)
+    for k in (0, 1):
+        np.add.at(total, edges[semi, k], es[semi])
+        np.add.at(count, edges[semi, k], 1.0)
+    out = np.empty((es.size, 2))
+    finite = np.where(semi, es, 0.0)
+    for k in (0, 1):
+        c, t = count[edges[:, k]], total[edges[:, k]]
+        others = (t - finite) / np.maximum(c - 1.0, 1.0)
+        ch = 0.75 * finite + 0.25 * others - 1.0
+        out[:, k] = np.where(semi & (c > 1), np.where(ch > 0, ch, 0.0), _decrement(es))
+    return out
 
 
 class _Rows:
@@ -182,9 +214,10 @@ class _Level:
 class _Context:
     """Topology tables, intervals and tags of one mesh, as flat arrays (read-only)."""
 
-    def __init__(self, mesh: ControlMesh) -> None:
+    def __init__(self, mesh: ControlMesh, crease_method: str = "uniform") -> None:
         t = Topology(mesh)
         self.mesh, self.topo = mesh, t
+        self.crease_method = crease_method
         self.H = t.origin.size
         self.nf, self.ne, self.nv = t.n_faces, t.n_edges, t.n_vertices
         self.origin, self.dest, self.nxt, self.prv = t.origin, t.dest, t.next, t.prev
@@ -219,15 +252,19 @@ class _Context:
 
     # -- levels -------------------------------------------------------------------------------
     def level(self, es: np.ndarray, vs: np.ndarray) -> _Level:
-        sharp = es > 0
-        count = np.bincount(self.edges[sharp].ravel(), minlength=self.nv)
+        """Rules from edge sharpness ``es``, (e,) or (e, 2) per end ``edges[:, k]`` (the
+        child's halves, which Chaikin creasing may give two values), and vertex sharpness."""
+        es = np.stack([es, es], axis=1) if es.ndim == 1 else es
+        at_end = es > 0
+        sharp = at_end.any(axis=1)
+        count = np.bincount(self.edges[at_end], minlength=self.nv)
         vsharp = vs > 0
         rule = np.where(vsharp | (count > 2), CORNER, np.minimum(count, 2)).astype(np.int8)
         ends = np.full((self.nv, 2), -1, np.int64)
-        se = np.flatnonzero(sharp)
-        if se.size:
-            vv = np.concatenate([self.edges[se, 0], self.edges[se, 1]])
-            ee = np.concatenate([se, se])
+        s0, s1 = np.flatnonzero(at_end[:, 0]), np.flatnonzero(at_end[:, 1])
+        if s0.size + s1.size:
+            vv = np.concatenate([self.edges[s0, 0], self.edges[s1, 1]])
+            ee = np.concatenate([s0, s1])
             order = np.argsort(vv, kind="stable")
             vv, ee = vv[order], ee[order]
             first = np.searchsorted(vv, np.arange(self.nv))
@@ -241,8 +278,28 @@ class _Context:
         return self.level(self.es, self.vs)
 
     @cached_property
+    def child_es(self) -> np.ndarray:
+        """(e, 2) sharpness of the child half of every edge at its end ``edges[:, k]``."""
+        if self.crease_method == "chaikin":
+            return _chaikin(self.es, self.edges, self.nv)
+        d = _decrement(self.es)
+        return np.stack([d, d], axis=1)
+
+    @cached_property
     def child(self) -> _Level:
-        return self.level(_decrement(self.es), _decrement(self.vs))
+        return self.level(self.child_es, _decrement(self.vs))
+
+    @cached_property
+    def edge_sharp_weight(self) -> np.ndarray:
+        """(e,) weight of the crease rule in the edge point, the rest going to the smooth rule
+        (``Sdc::Scheme::ComputeEdgeVertexMask`` as ``Far::PrimvarRefiner`` calls it): 0 on a
+        smooth edge; 1 when both child halves stay sharp (the child vertex is a crease);
+        otherwise the parent sharpness s.  Uniform creasing: ``min(s, 1)``.  Chaikin creasing
+        can keep an edge of s < 1 sharp (1) and can clear a half of an edge of s > 1: then
+        OpenSubdiv's weight is s itself, unclamped (the smooth rule gets 1 - s < 0), kept so
+        that the points equal OpenSubdiv's."""
+        both = (self.child_es > 0).all(axis=1)
+        return np.where(self.es > 0, np.where(both, 1.0, self.es), 0.0)
 
     # -- half-edge helpers --------------------------------------------------------------------
     @cached_property
@@ -625,11 +682,20 @@ def _tagged_rows(ctx: _Context, claims: _Claims) -> None:
 # The operator
 
 
-def _check_options(rules: str, angles: str) -> None:
+def _check_options(rules: str, angles: str, crease_method: str = "uniform") -> None:
     if rules not in RULE_SETS:
         raise UnsupportedError(f"unknown subdivision rules '{rules}' (choose {' or '.join(RULE_SETS)})")
     if angles not in ANGLE_CHOICES:
         raise UnsupportedError(f"unknown eigen-polyhedron angles '{angles}' (choose {' or '.join(ANGLE_CHOICES)})")
+    if crease_method not in CREASE_METHODS:
+        raise UnsupportedError(
+            f"unknown crease method '{crease_method}' (choose {' or '.join(CREASE_METHODS)})"
+        )
+    if crease_method == "chaikin" and rules != "opensubdiv":
+        raise UnsupportedError(
+            "chaikin creasing is an option of OpenSubdiv's rules (use rules opensubdiv); seed "
+            "000 decrements sharpness uniformly"
+        )
 
 
 def _refuse_nonuniform(ctx: _Context) -> None:
@@ -667,12 +733,13 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     # Face points.
     _face_rows(ctx, rows, ~claimed[: ctx.nf])
 
-    # Edge points: w = min(s, 1) sharp + (1 - w) smooth (scheme.h ComputeEdgeVertexMask).
-    w = np.minimum(ctx.es, 1.0)
+    # Edge points: w sharp + (1 - w) smooth (scheme.h ComputeEdgeVertexMask; w = min(s, 1)
+    # under uniform creasing, see _Context.edge_sharp_weight).
+    w = ctx.edge_sharp_weight
     free_e = ~claimed[ctx.nf : ctx.nf + ctx.ne]
     sharp_e = np.flatnonzero((w > 0) & free_e)
     _sharp_edge_rows(ctx, rows, sharp_e, w[sharp_e], seed)
-    smooth_e = np.flatnonzero((w < 1) & free_e)
+    smooth_e = np.flatnonzero((w != 1) & free_e)
     scale = 1.0 - w[smooth_e]
     if nonuniform:
         near_nonquad = ctx.v_nonquad[ctx.edges[smooth_e, 0]] & ctx.v_nonquad[ctx.edges[smooth_e, 1]]
@@ -752,14 +819,16 @@ def _edge_touches_nonquad(ctx: _Context, e: np.ndarray) -> np.ndarray:
 
 
 def _fractional_weight(ctx: _Context) -> np.ndarray:
-    """Crease::ComputeFractionalWeightAtVertex (uniform creasing), (v,) float64."""
+    """Crease::ComputeFractionalWeightAtVertex, (v,) float64: the mean parent sharpness of the
+    vertex (if it decays to 0) and of its edges whose half at the vertex decays to 0 (uniform
+    creasing: the edges of sharpness <= 1), clamped to 1."""
     total = np.zeros(ctx.nv)
     count = np.zeros(ctx.nv)
     vt = (ctx.vs > 0) & (_decrement(ctx.vs) <= 0)
     total[vt] += ctx.vs[vt]
     count[vt] += 1
-    et = (ctx.es > 0) & (ctx.es <= 1.0)
     for k in (0, 1):
+        et = (ctx.es > 0) & (ctx.child_es[:, k] <= 0)
         np.add.at(total, ctx.edges[et, k], ctx.es[et])
         np.add.at(count, ctx.edges[et, k], 1.0)
     return np.where(count > 0, np.minimum(1.0, total / np.maximum(count, 1.0)), 0.0)
@@ -810,12 +879,13 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     inner_pairs = np.stack([ctx.face, nf + ctx.eoh], 1)
     inner_d = ctx.d_h[ctx.nxt[h]] / 2.0
     creases = {}
-    es_child = _decrement(ctx.es)
+    es_child = ctx.child_es
     parent_s = ctx.topo.edge_sharpness
-    keep = np.flatnonzero((es_child > 0) & ~ctx.e_boundary)
-    for e in keep.tolist():
-        s = float(parent_s[e]) if parent_s[e] >= INFINITELY_SHARP else float(es_child[e])
-        for pair in ((nf + ne + int(a[e]), nf + e), (nf + ne + int(b[e]), nf + e)):
+    for k, end in enumerate((a, b)):
+        keep = np.flatnonzero((es_child[:, k] > 0) & ~ctx.e_boundary)
+        for e in keep.tolist():
+            s = float(parent_s[e]) if parent_s[e] >= INFINITELY_SHARP else float(es_child[e, k])
+            pair = (nf + ne + int(end[e]), nf + e)
             creases[(min(pair), max(pair))] = s
     corners = {}
     for v, s in ctx.mesh.corners.items():
@@ -854,7 +924,7 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
 
 
 def subdivision_operator(
-    mesh: ControlMesh, rules: str = "seed", angles: str = "standard"
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
 ) -> tuple[sp.csr_matrix, ControlMesh]:
     """One subdivision step: (S, refined mesh).
 
@@ -864,24 +934,31 @@ def subdivision_operator(
     strip), crease and corner sharpness decremented (infinite stays), holes' children holes,
     interpolateboundary; its positions are ``S @ mesh.vertices``.
     rules: "seed" (default) or "opensubdiv"; angles: "standard" or "modified" (seed 001, for
-    the eigen-polyhedron at non-uniform extraordinary points).
+    the eigen-polyhedron at non-uniform extraordinary points); crease_method: "uniform"
+    (default: sharpness drops by 1) or "chaikin" (OpenSubdiv's ``CREASE_CHAIKIN``, with
+    ``rules="opensubdiv"`` only: the two halves of a semi-sharp edge get ``3/4 s + 1/4 (mean
+    of the other semi-sharp edges at that end) - 1``, see ``_chaikin``; the refined mesh's
+    crease tags carry each half's value).
     Raises KnotError for non-uniform intervals under "opensubdiv", UnsupportedError for the
     configurations listed in the module docstring, MeshError for non-manifold input.
     """
-    _check_options(rules, angles)
-    ctx = _Context(mesh)
+    _check_options(rules, angles, crease_method)
+    ctx = _Context(mesh, crease_method)
     s = _operator(ctx, rules, angles)
     child = _child_mesh(ctx, s @ mesh.vertices)
     return s, child
 
 
-def subdivide(mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: str = "standard") -> ControlMesh:
-    """``steps`` subdivision steps; the refined control mesh with its tags."""
-    _check_options(rules, angles)
+def subdivide(
+    mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+) -> ControlMesh:
+    """``steps`` subdivision steps; the refined control mesh with its tags (options as
+    :func:`subdivision_operator`)."""
+    _check_options(rules, angles, crease_method)
     if steps < 0:
         raise UnsupportedError(f"number of subdivision steps must be >= 0, got {steps}")
     for _ in range(steps):
-        _, mesh = subdivision_operator(mesh, rules, angles)
+        _, mesh = subdivision_operator(mesh, rules, angles, crease_method)
     return mesh
 
 
@@ -895,7 +972,7 @@ MAX_LIMIT_STEPS = 6
 MAX_LIMIT_FACES = 4_000_000
 
 
-def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str):
+def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str, crease_method: str = "uniform"):
     """Subdivide until every rule is stationary: one step (so that every vertex sees equal
     intervals on both halves of each spoke, seed 000 Fig. 8) plus one per unit of the largest
     finite sharpness.  Returns (level mesh, S_total, ids of the input vertices at that level)."""
@@ -911,7 +988,7 @@ def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str):
     total = sp.identity(mesh.n_vertices, format="csr")
     ids = np.arange(mesh.n_vertices)
     for _ in range(steps):
-        ctx = _Context(mesh)
+        ctx = _Context(mesh, crease_method)
         s = _operator(ctx, rules, angles)
         total = (s @ total).tocsr()
         ids = ctx.nf + ctx.ne + ids
@@ -1023,7 +1100,9 @@ def _ring_block(ctx: _Context, v: int, ring: np.ndarray, rules: str, angles: str
     return s[rows][:, cols].toarray()
 
 
-def limit_operator(mesh: ControlMesh, rules: str = "seed", angles: str = "standard") -> sp.csr_matrix:
+def limit_operator(
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+) -> sp.csr_matrix:
     """L: (n_vertices, n_vertices) CSR, ``L @ P`` = the limit-surface point of every vertex.
 
     Subdivides until the rules are stationary (``_refine_for_limit``), then applies the local
@@ -1035,8 +1114,8 @@ def limit_operator(mesh: ControlMesh, rules: str = "seed", angles: str = "standa
     of valence != 4 (BLZ-modified edges) the left eigenvector of S's own 1-ring block.
     Isolated vertices: themselves.
     """
-    _check_options(rules, angles)
-    level, total, ids = _refine_for_limit(mesh, rules, angles)
+    _check_options(rules, angles, crease_method)
+    level, total, ids = _refine_for_limit(mesh, rules, angles, crease_method)
     ctx = _Context(level)
     used = ctx.topo.vertex_is_used[ids]
     (pos, _, _), _ = _local_masks(ctx, ids[used], rules, angles, tangents=False)
@@ -1049,12 +1128,16 @@ def limit_operator(mesh: ControlMesh, rules: str = "seed", angles: str = "standa
     return sp.csr_matrix((v, (r, c)), shape=(mesh.n_vertices, mesh.n_vertices))
 
 
-def limit_points(mesh: ControlMesh, rules: str = "seed", angles: str = "standard") -> np.ndarray:
+def limit_points(
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+) -> np.ndarray:
     """(n_vertices, 3) limit-surface position of every control vertex (``limit_operator``)."""
-    return limit_operator(mesh, rules, angles) @ mesh.vertices
+    return limit_operator(mesh, rules, angles, crease_method) @ mesh.vertices
 
 
-def limit_tangents(mesh: ControlMesh, rules: str = "seed", angles: str = "standard") -> np.ndarray:
+def limit_tangents(
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+) -> np.ndarray:
     """(n_vertices, 2, 3) two tangent vectors of the limit surface at every vertex; NaN where the
     surface has no single tangent plane or this version does not compute it (corners; the
     second vector at crease vertices, where only the crease direction is given; seed-rule darts
@@ -1066,8 +1149,8 @@ def limit_tangents(mesh: ControlMesh, rules: str = "seed", angles: str = "standa
     Catmull-Clark's eigenvectors for uniform intervals).  Crease: the derivative along the
     crease curve, from its first crease edge to its second.
     """
-    _check_options(rules, angles)
-    level, total, ids = _refine_for_limit(mesh, rules, angles)
+    _check_options(rules, angles, crease_method)
+    level, total, ids = _refine_for_limit(mesh, rules, angles, crease_method)
     ctx = _Context(level)
     used = ctx.topo.vertex_is_used[ids]
     rows_used = np.flatnonzero(used)

@@ -17,7 +17,7 @@ from patching.errors import KnotError, MeshError, UnsupportedError
 from patching.mesh import from_arrays
 from patching.obj import read_obj, write_obj
 from patching.primitives import open_grid, torus_grid
-from patching.subdivision import subdivide, subdivision_operator
+from patching.subdivision import limit_points, subdivide, subdivision_operator
 from tests.conftest import shape_files
 
 # Round-off: every reference point is a short sum of O(1) weights times coordinates of size
@@ -52,9 +52,11 @@ NONMANIFOLD = [p for p in shape_files("catmark_") if p not in SHAPES]
 # The reference: one subdivision step computed point by point with dicts and loops.
 
 
-def reference_step(mesh, rules: str):
+def reference_step(mesh, rules: str, creasing: str = "uniform"):
     """New points (face points, edge points by sorted (a, b), vertex points) by the rules as
-    published; ``rules`` is "cc" (classic, tags ignored), "opensubdiv" or "blz"."""
+    published; ``rules`` is "cc" (classic, tags ignored), "opensubdiv" or "blz"; ``creasing``
+    "uniform" or "chaikin" (OpenSubdiv's Sdc::Options::CREASE_CHAIKIN, as sdc/crease.cpp and
+    vtr/refinement.cpp apply it)."""
     P = mesh.vertices
     faces = [list(map(int, mesh.face(f))) for f in range(mesh.n_faces)]
     edge_faces = defaultdict(list)
@@ -88,6 +90,18 @@ def reference_step(mesh, rules: str):
         if vs > 0 or sharp_count > 2:
             return "corner"
         return ["smooth", "dart", "crease"][sharp_count]
+
+    def child_sharp(a, b):
+        """Sharpness of the half of edge a-b at a: Crease::SubdivideEdgeSharpnessAtVertex."""
+        s = edge_sharp(key(a, b))
+        if creasing == "uniform":
+            return dec(s)
+        if s <= 0 or math.isinf(s):
+            return s
+        semi = [x for x in (edge_sharp(key(a, w)) for w in vert_nbrs[a]) if 0 < x < math.inf]
+        if len(semi) > 1:  # "3/4 original sharpness + 1/4 average of the others"
+            s = 0.75 * s + 0.25 * (sum(semi) - s) / (len(semi) - 1)
+        return s - 1.0 if s > 1.0 else 0.0
 
     fp = [P[fv].mean(axis=0) for fv in faces]
 
@@ -133,7 +147,10 @@ def reference_step(mesh, rules: str):
     for (a, b), fs in edge_faces.items():
         s = edge_sharp((a, b))
         mid = (P[a] + P[b]) / 2
-        if s >= 1:
+        # Far::PrimvarRefiner: the child vertex is a crease when both halves stay sharp; else
+        # the crease mask is blended with the parent sharpness s (unclamped, Scheme's
+        # ComputeEdgeVertexMask), which is 1 for s = 1 under uniform creasing.
+        if min(child_sharp(a, b), child_sharp(b, a)) > 0 or s == 1:
             ep[(a, b)] = mid
             continue
         smooth = (P[a] + P[b] + fp[fs[0]] + fp[fs[1]]) / 4
@@ -153,7 +170,7 @@ def reference_step(mesh, rules: str):
             continue
         nb = sorted(vert_nbrs[v])
         ps = [edge_sharp(key(v, w)) for w in nb]
-        cs = [dec(s) for s in ps]
+        cs = [child_sharp(v, w) for w in nb]
         pv, cv = vertex_sharp(v), dec(vertex_sharp(v))
         pr = rule(pv, sum(s > 0 for s in ps))
         cr = rule(cv, sum(s > 0 for s in cs))
@@ -171,12 +188,12 @@ def reference_step(mesh, rules: str):
         if pr in ("smooth", "dart") or cr == pr:
             vp[v] = pm
             continue
-        # Crease::ComputeFractionalWeightAtVertex, uniform creasing
+        # Crease::ComputeFractionalWeightAtVertex
         total, count = 0.0, 0
         if pv > 0 and cv <= 0:
             total, count = pv, 1
-        for s in ps:
-            if 0 < s <= 1:
+        for s, c in zip(ps, cs):
+            if (0 < s <= 1) if creasing == "uniform" else (s > 0 and c <= 0):
                 total += s
                 count += 1
         pw = min(1.0, total / count) if count else 0.0
@@ -184,8 +201,8 @@ def reference_step(mesh, rules: str):
     return np.array(fp), ep, vp
 
 
-def reference_points(mesh, rules):
-    fp, ep, vp = reference_step(mesh, rules)
+def reference_points(mesh, rules, creasing="uniform"):
+    fp, ep, vp = reference_step(mesh, rules, creasing)
     edges = sorted(ep)
     return np.concatenate([fp, np.array([ep[k] for k in edges]), vp])
 
@@ -268,6 +285,88 @@ def test_opensubdiv_refuses_nonuniform_intervals():
     with pytest.raises(KnotError) as err:
         subdivision_operator(mesh, rules="opensubdiv")
     assert "\n" not in str(err.value) and "uniform" in str(err.value)
+
+
+def _semi_sharp(mesh):
+    return any(0 < x < 10 for x in list(mesh.creases.values()) + list(mesh.corners.values()))
+
+
+SEMI_SHARP_SHAPES = [p for p in SHAPES if _semi_sharp(_read(p))]
+
+
+@pytest.mark.skipif(not SEMI_SHARP_SHAPES, reason="opensubdiv-shapes folder absent")
+@pytest.mark.parametrize("path", SEMI_SHARP_SHAPES, ids=lambda p: p.stem)
+def test_chaikin_creasing_on_semi_sharp_shapes(path):
+    """CREASE_CHAIKIN against the reference, three steps: each step reads the child halves'
+    sharpness that the previous one wrote into the refined mesh's tags."""
+    mesh = _read(path)
+    for step in range(3 if mesh.n_faces < 200 else 2):
+        S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method="chaikin")
+        expected = reference_points(mesh, "opensubdiv", "chaikin")
+        assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * _size(mesh), f"step {step}"
+        assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-14
+        mesh = child
+
+
+def test_chaikin_halves_on_cube_creases1():
+    """catmark_cube_creases1: edge 3-5 (s = 0.1) meets two edges of s = 5 at each end, so
+    Chaikin keeps both halves sharp, 3/4 0.1 + 1/4 5 - 1 = 0.325 (uniform creasing clears
+    them), and the edges of 5 at vertex 3 get 3/4 5 + 1/4 (5 + 0.1)/2 - 1 = 3.3875; the
+    edge point of 3-5 is then the midpoint, and the surface differs from uniform creasing."""
+    path = [p for p in SEMI_SHARP_SHAPES if p.stem == "catmark_cube_creases1"]
+    if not path:
+        pytest.skip("opensubdiv-shapes folder absent")
+    mesh = _read(path[0])
+    S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method="chaikin")
+    Su, child_u = subdivision_operator(mesh, rules="opensubdiv")
+    nf, ne = mesh.n_faces, S.shape[0] - mesh.n_faces - mesh.n_vertices
+    from patching.topology import Topology
+
+    edges = [tuple(e) for e in Topology(mesh).edges.tolist()]
+    e35, e13 = edges.index((3, 5)), edges.index((1, 3))
+    tags = child.creases
+    assert tags[(nf + e35, nf + ne + 3)] == pytest.approx(0.325, abs=1e-15)
+    assert tags[(nf + e35, nf + ne + 5)] == pytest.approx(0.325, abs=1e-15)
+    assert tags[(nf + e13, nf + ne + 3)] == pytest.approx(3.3875, abs=1e-15)
+    assert tags[(nf + e13, nf + ne + 1)] == pytest.approx(4.0, abs=1e-15)  # three edges of 5 at 1
+    assert (nf + e35, nf + ne + 3) not in child_u.creases
+    mid = (mesh.vertices[3] + mesh.vertices[5]) / 2
+    assert np.abs((S @ mesh.vertices)[nf + e35] - mid).max() <= TIGHT
+    assert np.abs((Su @ mesh.vertices)[nf + e35] - mid).max() > 1e-2
+
+
+@pytest.mark.parametrize("sharpness", [(1.2, 0.3, 0.5), (0.9, 2.0, 0.2), (2.5, 1.5, 3.0), (0.4, 0.4, 7.0)])
+def test_chaikin_creasing_mixed_sharpness_on_open_grid(sharpness):
+    """Crease chains whose sharpness changes along them and at a branch, in the three boundary
+    modes: an edge of s > 1 whose half decays (OpenSubdiv's unclamped blend weight s), an edge
+    of s < 1 kept sharp by sharper neighbours, and a corner tag, three steps."""
+    a, b, c = sharpness
+    grid = open_grid(6, 5)
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    creases = {(11, 12): a, (12, 13): b, (13, 14): a, (12, 17): c, (17, 22): b}  # 6 x 5 points
+    for mode in (0, 1, 2):
+        mesh = from_arrays(grid.vertices, faces, creases=creases, corners={16: b}, interpolate_boundary=mode)
+        for _ in range(3):
+            S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method="chaikin")
+            assert np.abs(S @ mesh.vertices - reference_points(mesh, "opensubdiv", "chaikin")).max() <= TIGHT * 6
+            mesh = child
+
+
+def test_chaikin_limit_points_invariant_and_option_checks():
+    mesh = from_arrays(
+        open_grid(6, 5).vertices,
+        [list(open_grid(6, 5).face(f)) for f in range(20)],
+        creases={(11, 12): 1.2, (12, 13): 0.3, (12, 17): 2.5},
+    )
+    lim = limit_points(mesh, rules="opensubdiv", crease_method="chaikin")
+    child = subdivide(mesh, rules="opensubdiv", crease_method="chaikin")
+    ids = child.n_vertices - mesh.n_vertices + np.arange(mesh.n_vertices)
+    assert np.abs(limit_points(child, rules="opensubdiv", crease_method="chaikin")[ids] - lim).max() < 1e-13
+    assert np.abs(limit_points(mesh, rules="opensubdiv") - lim).max() > 1e-3
+    with pytest.raises(UnsupportedError, match="opensubdiv"):
+        subdivide(mesh, crease_method="chaikin")  # seed rules decrement uniformly
+    with pytest.raises(UnsupportedError, match="crease method"):
+        subdivision_operator(mesh, rules="opensubdiv", crease_method="hbr")
 
 
 @pytest.mark.skipif(not NONMANIFOLD, reason="opensubdiv-shapes folder absent")
