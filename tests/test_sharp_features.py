@@ -261,3 +261,17 @@ def test_shipped_machined_bracket():
     assert on_top and max(np.abs(net[..., 2] - top).max() for net in on_top) <= 1e-14
     report = check_continuity(to_shape(surface))
     assert report.valid and report.n_solids == 1 and report.max_gap_relative <= 1e-9
+
+
+@pytest.mark.parametrize("n", [64, 100])
+def test_high_valence_poles(n):
+    """Poles of valence 64 and more (issue 4): bipyramid-n with random intervals is a valid G1
+    solid; the angle configuration and the local solves scale to these rings."""
+    from export import check_continuity, to_shape
+
+    mesh = with_random_intervals(quad_mesh_with_eps(f"bipyramid-{n}"), 5.0, seed=n)
+    assert Topology(mesh).valence.max() == n
+    surface = patching.build(mesh)
+    assert_g1_with_exact_creases(mesh, surface)
+    report = check_continuity(to_shape(surface))
+    assert report.valid and report.n_solids == 1 and report.max_smooth_normal_jump_deg <= 1e-6
