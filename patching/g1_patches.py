@@ -209,9 +209,7 @@ class RowMixer:
 
     def __init__(self, n_rows: int) -> None:
         self.n_rows = n_rows
-        self.targets: list[np.ndarray] = []
-        self.sources: list[np.ndarray] = []
-        self.weights: list[np.ndarray] = []
+        self.blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     def set(self, targets: np.ndarray, sources: np.ndarray, weights: np.ndarray) -> None:
         """Batched: targets (E, T) rows become weights (T, S) (or (E, T, S)) @ rows sources (E, S)."""
@@ -222,16 +220,41 @@ class RowMixer:
         e, t = targets.shape
         s = sources.shape[1]
         weights = np.broadcast_to(np.asarray(weights, dtype=np.float64), (e, t, s))
-        self.targets.append(np.broadcast_to(targets[:, :, None], (e, t, s)).ravel())
-        self.sources.append(np.broadcast_to(sources[:, None, :], (e, t, s)).ravel())
-        self.weights.append(weights.ravel())
+        self.blocks.append((targets, sources, weights))
 
     def matrix(self) -> sp.csr_matrix:
-        if not self.targets:
-            return sp.identity(self.n_rows, format="csr")
-        t = np.concatenate(self.targets)
-        s = np.concatenate(self.sources)
-        w = np.concatenate(self.weights)
+        """The step as a CSR matrix, written straight into CSR arrays when every target row is
+        set once (each step's rule: one solve owns a row); a row set twice sums its rules.
+        Repeated sources in a row stay repeated entries (sparse products add them)."""
+        n = self.n_rows
+        if not self.blocks:
+            return sp.identity(n, format="csr")
+        targets = np.concatenate([t.ravel() for t, _, _ in self.blocks])
+        if targets.min() < 0 or np.bincount(targets, minlength=n).max() > 1:
+            return self._summed()
+        counts = np.ones(n, dtype=np.int64)
+        for t, src, _ in self.blocks:
+            counts[t] = src.shape[1]
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        indices = np.empty(indptr[-1], dtype=np.int64)
+        data = np.empty(indptr[-1], dtype=np.float64)
+        untouched = np.ones(n, dtype=bool)
+        untouched[targets] = False
+        ident = np.flatnonzero(untouched)
+        indices[indptr[ident]] = ident
+        data[indptr[ident]] = 1.0
+        for t, src, w in self.blocks:
+            pos = indptr[t][:, :, None] + np.arange(src.shape[1])  # (E, T, S)
+            indices[pos] = src[:, None, :]
+            data[pos] = w
+        return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+    def _summed(self) -> sp.csr_matrix:
+        """The general path: triplets, duplicates summed."""
+        t = np.concatenate([np.broadcast_to(t[:, :, None], w.shape).ravel() for t, _, w in self.blocks])
+        s = np.concatenate([np.broadcast_to(src[:, None, :], w.shape).ravel() for _, src, w in self.blocks])
+        w = np.concatenate([w.ravel() for _, _, w in self.blocks])
         keep = np.ones(self.n_rows, dtype=bool)
         keep[t] = False
         ident = np.flatnonzero(keep)
@@ -251,6 +274,12 @@ def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return uniq, inverse.ravel()
 
 
+def _key(row: np.ndarray) -> tuple:
+    """A cache key of a float row: NaN (no value) becomes None, since NaN != NaN and its hash
+    is per object, so a key holding NaN never hits an lru_cache."""
+    return tuple(None if x != x else x for x in row.tolist())
+
+
 def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
     u, s, vt = np.linalg.svd(a)
     rank = int(np.count_nonzero(s > rtol * max(1.0, s.max(initial=0.0))))
@@ -261,7 +290,7 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
-    key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 NaN for a regular far end.
+    key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.
     Stage 1 (seed 002 section 3.4): P00 held, spoke points s and face points f nearest to the
     extraction's differences D under G_0; every input is then in the anchors' plane, so the
     tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to stage 1 and the
@@ -282,7 +311,7 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
     for i, (aa, ab, b0, b1) in enumerate(key):
         if skip[i]:
             continue
-        g = spoke_equations(aa, ab, b0, None if np.isnan(b1) else b1)
+        g = spoke_equations(aa, ab, b0, b1)
         # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
         # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
         slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
@@ -398,7 +427,7 @@ class G1Assembly:
             uniq, inverse = _unique_rows(keys)
             skip = tuple(bool(x) for x in g.unconstrained)
             ops = np.array(
-                [_red_operator(n, tuple(map(tuple, row.reshape(n, 4).tolist())), pinned, g.gap, skip) for row in uniq]
+                [_red_operator(n, tuple(_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip) for row in uniq]
             )
             present = g.patches
 
@@ -454,7 +483,7 @@ class G1Assembly:
                     axis=1,
                 )[sel]
                 uniq, inverse = _unique_rows(keys[sel, i])
-                weights = np.array([_green_weights(*row) for row in uniq])[inverse]  # (E, 4, 18)
+                weights = np.array([_green_weights(*_key(row)) for row in uniq])[inverse]  # (E, 4, 18)
                 tgt = slots[:, [a_slot(2), b_slot(2), a_slot(3), b_slot(3)]]
                 mixer.set(tgt, slots, weights)
 
@@ -484,10 +513,10 @@ def _sector_beta(g: EPGroup) -> np.ndarray:
 
 
 @lru_cache(maxsize=65536)
-def _green_weights(alpha_a: float, alpha_b: float, b0: float, b1: float) -> np.ndarray:
+def _green_weights(alpha_a: float, alpha_b: float, b0: float, b1: float | None) -> np.ndarray:
     """(4, SLOTS): A[2,1], B[1,2], A[3,1], B[1,3] nearest to their extraction values under
     G_2, G_3: x = x_hat - n (n . x_hat + rest) / |n|^2 for x = (A[k,1], B[1,k])."""
-    g = spoke_equations(alpha_a, alpha_b, b0, None if np.isnan(b1) else b1)
+    g = spoke_equations(alpha_a, alpha_b, b0, b1)
     out = np.zeros((4, g.shape[1]))
     for r, k in enumerate((2, 3)):
         na, nb = g[k, a_slot(k)], g[k, b_slot(k)]
