@@ -143,36 +143,39 @@ def build_operator(
     irregular_face = is_ep[mesh.quads()].any(axis=1)
     cubic_faces = faces[~irregular_face[faces]]
     quintic_faces = faces[irregular_face[faces]]
-    cubic_rows = (16 * cubic_faces[:, None] + np.arange(16)).ravel()
-    blocks = [extraction.nets[cubic_rows]]
     groups = [OperatorGroup(3, cubic_faces, 0)]
+    # One row space for the whole operator: the cubic faces' 16 rows, then 36 quintic rows per
+    # irregular face, those without a patch (holes, zero spans: still read by the G1 steps
+    # around their EPs) last, so that M's rows are a leading block of it.
+    all_irregular = np.flatnonzero(irregular_face)
+    patchless = np.setdiff1d(all_irregular, quintic_faces)
+    quintic_order = np.concatenate([quintic_faces, patchless])
+    n_cubic_rows = 16 * cubic_faces.size
+    n_rows = n_cubic_rows + 36 * quintic_order.size
+    face_row = np.full(mesh.n_faces, -1, dtype=np.int64)
+    face_row[quintic_order] = n_cubic_rows + 36 * np.arange(quintic_order.size)
+    # Start: the cubic faces' extraction rows as they are, the irregular faces' degree-elevated
+    # (16 -> 36 rows); columns are rows of the extraction (16 f + 4 i + j).
+    mixing = _select_and_elevate(cubic_faces, quintic_order, extraction.nets.shape[0])
     if quintic_faces.size:
-        # Degree elevation of every irregular face (16 -> 36 rows), then the G1 steps.
-        all_irregular = np.flatnonzero(irregular_face)
-        face_row = np.full(mesh.n_faces, -1, dtype=np.int64)
-        face_row[all_irregular] = 36 * np.arange(all_irregular.size)
-        elevate = sp.kron(sp.identity(all_irregular.size), sp.csr_matrix(elevation_matrix_2d(3, 5)), format="csr")
-        src = (16 * all_irregular[:, None] + np.arange(16)).ravel()
         groups_ep = ep_groups(topo, eps, feats)
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
         # Compose the row mixings first (few entries per row), then apply them once to the
         # extraction rows, whose rows are long: far cheaper than four passes over long rows.
-        mixing = elevate
         for solve in (g1.red, g1.black, g1.green, g1.blue):
-            mixer = RowMixer(mixing.shape[0])
+            mixer = RowMixer(n_rows)
             solve(mixer)
             mixing = mixer.matrix() @ mixing
-        rows = mixing @ extraction.nets[src]
-        keep = (face_row[quintic_faces][:, None] + np.arange(36)).ravel()
-        blocks.append(rows[keep])
-        groups.append(OperatorGroup(5, quintic_faces, int(cubic_rows.size)))
+        groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
         anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, rule=rule)
         anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
-    stacked = sp.vstack(blocks).tocsr()  # rows over [control points | anchors]
+    if patchless.size:
+        mixing = mixing[: n_rows - 36 * patchless.size]
+    stacked = (mixing @ extraction.nets).tocsr()  # rows over [control points | anchors]
     if anchors == "faired" and n_anchor:
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
@@ -186,6 +189,20 @@ def build_operator(
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
     return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
+
+
+def _select_and_elevate(cubic_faces: np.ndarray, quintic_faces: np.ndarray, n_columns: int) -> sp.csr_matrix:
+    """(16 c + 36 q, n_columns) CSR over extraction rows: row 16 k + r picks row r of cubic
+    face k; the 36 rows of quintic face k are its 16 rows degree-elevated to bi-quintic."""
+    elevate = sp.csr_matrix(elevation_matrix_2d(3, 5))
+    per_face = elevate.nnz
+    cubic_cols = (16 * cubic_faces[:, None] + np.arange(16)).ravel()
+    quintic_cols = (16 * quintic_faces[:, None] + elevate.indices[None, :]).ravel()
+    indices = np.concatenate([cubic_cols, quintic_cols])
+    row_starts = cubic_cols.size + (per_face * np.arange(quintic_faces.size)[:, None] + elevate.indptr[None, :-1]).ravel()
+    indptr = np.concatenate([np.arange(cubic_cols.size), row_starts, [indices.size]])
+    data = np.concatenate([np.ones(cubic_cols.size), np.tile(elevate.data, quintic_faces.size)])
+    return sp.csr_matrix((data, indices, indptr), shape=(cubic_cols.size + 36 * quintic_faces.size, n_columns))
 
 
 def _sector_anchors(topo: Topology, feats: Features, groups, anchor_column: np.ndarray, n_points: int) -> sp.csr_matrix:
