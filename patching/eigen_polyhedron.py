@@ -150,12 +150,14 @@ def characteristic_scale(valence: int) -> CharacteristicScale:
 # Input checking and the cache key
 
 
-def _as_intervals(intervals, batch: bool = False) -> np.ndarray:
-    """(n,) float64 spoke intervals, checked; with ``batch`` also (g, n): g vertices at once."""
+def _as_intervals(intervals, batch: bool = False, min_valence: int = 3) -> np.ndarray:
+    """(n,) float64 spoke intervals, checked; with ``batch`` also (g, n): g vertices at once.
+    ``min_valence`` 2 for the explicit vertex rule (no polyhedron needed), else 3."""
     d = np.asarray(intervals, dtype=np.float64)
-    if d.ndim not in ((1, 2) if batch else (1,)) or d.shape[-1] < 3:
+    if d.ndim not in ((1, 2) if batch else (1,)) or d.shape[-1] < min_valence:
         raise ValueError(
-            f"spoke intervals: need a 1-D list of at least 3 knot intervals, got shape {d.shape}"
+            f"spoke intervals: need a 1-D list of at least {min_valence} knot intervals, got "
+            f"shape {d.shape}"
         )
     bad = np.flatnonzero(~np.isfinite(d) | (d <= 0.0))
     if bad.size:
@@ -353,8 +355,11 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     extreme ratios, see :func:`subdivision_eigenvalues`).
     Checks (tests): uniform intervals give Catmull-Clark's ``(n-2)/n V + (sum E + sum F)/n^2``;
     valence 4 gives the tensor product of cubic B-spline vertex rules (knot insertion).
+    Valence 2 is accepted (the formula needs no polyhedron): there ``d_{i+-2} = d_i``, so
+    ``g_i = 1/2`` and ``f_i = d_0 d_1`` for both spokes and the rule is Catmull-Clark's
+    ``V/8 + 3/8 (E_0 + E_1) + (F_0 + F_1)/16`` for any positive intervals.
     """
-    d = _as_intervals(intervals, batch=True)
+    d = _as_intervals(intervals, batch=True, min_valence=2)
     n = d.shape[-1]
     terms, mass = spoke_terms(d)
     w = (3.0 / n) * terms.sum(axis=-2) / mass.sum(axis=-1)[..., None]
@@ -366,8 +371,8 @@ def spoke_terms(intervals) -> tuple[np.ndarray, np.ndarray]:
     """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..], (n, 2n+1), and
     ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which seed 000's dart
     rule (``subdivision_rules``) splits between the two sides of the crease.  Intervals (g, n)
-    give (g, n, 2n+1) and (g, n): g vertices at once."""
-    d = _as_intervals(intervals, batch=True)
+    give (g, n, 2n+1) and (g, n): g vertices at once (n >= 2, as :func:`vertex_rule_weights`)."""
+    d = _as_intervals(intervals, batch=True, min_valence=2)
     n = d.shape[-1]
     dm2, dp2, dm1 = np.roll(d, 2, -1), np.roll(d, -2, -1), np.roll(d, 1, -1)
     g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)

@@ -85,11 +85,29 @@ Choices where the seeds are silent, written once:
   A crease sector of a single face (theta = pi) makes the polyhedron degenerate, and a zero
   spoke interval (a multiple knot, DESIGN 2) leaves it undefined: knot insertion with BLZ there
   too.
-* Not implemented (UnsupportedError, never a wrong surface): an interior vertex of valence 2
-  in a mesh with non-uniform intervals, tagged or not (the eigen-polyhedron needs n >= 3, and
-  no seed defines knot insertion around two faces sharing two edges; uniform intervals take
-  Catmull-Clark's rules, which OpenSubdiv defines for it); a rule whose bilinear solve has no root in the unit square
-  (extreme interval ratios).
+* An interior vertex of valence 2 with non-uniform intervals (two quads sharing two edges).
+  The eigen-polyhedron of seed 000 section 3 needs n >= 3 (at n = 2, ``c_n = -1`` and
+  ``tau = 4 / (c_n + 1 + sqrt((c_n + 9)(c_n + 1)))`` is infinite: the two spokes are opposite
+  and the face points collapse onto V), so no face or edge rule comes from a solve there.
+  What the seeds do define: the vertex rule of [LFS16] (seed 002 eq. 11, seed 000 eqs. 6-7)
+  is an explicit formula valid for any n, and the faces and spokes around the vertex take
+  the midpoint knot-insertion rules of regular regions (curve rules, with the spoke's own
+  interval beyond the vertex, as at every non-regular vertex).  At n = 2 the vertex rule's
+  ``g_i = 1/2`` and ``f_i = d_0 d_1`` for both spokes, so it is Catmull-Clark's
+  ``V/8 + 3/8 (E_0 + E_1) + (F_0 + F_1)/16`` whatever the intervals; and once the spokes are
+  split (both halves of a spoke carry one interval) the knot-insertion face and edge rows of
+  the 1-ring are Catmull-Clark's too.  So the 1-ring's stationary matrix is exactly
+  Catmull-Clark's at valence 2 (eigenvalues 1, 1/4, 1/4, 1/8, -1/4: Catmull-Clark's own
+  valence-2 structure, whose -1/4 matches the subdominant pair in modulus), its limit point
+  is Catmull-Clark's mask ``(2 V + 2 (E_0 + E_1) + (F_0 + F_1)/2) / 7``, and the intervals act
+  through the first step and the neighbours' rows.  Rows stay non-negative, so the limit
+  stays in the control points' convex hull (tests).  A crease through the vertex takes the
+  crease curve's rules; a dart or corner there takes knot insertion with BLZ's edge
+  correction, the fallback already used where the generalised eigen-polyhedron is undefined
+  (a crease sector of one face, a zero spoke interval).  Limit tangents at an interior
+  valence-2 vertex are NaN (the -1/4 eigenvalue: no single tangent plane in general).
+* Not implemented (UnsupportedError, never a wrong surface): a rule whose bilinear solve has
+  no root in the unit square (extreme interval ratios).
 """
 
 from __future__ import annotations
@@ -626,7 +644,8 @@ def _tagged_rows(ctx: _Context, claims: _Claims) -> None:
     from .eigen_polyhedron import BilinearError
 
     lev = ctx.parent
-    cand = np.flatnonzero((lev.rule != SMOOTH) & ~ctx.v_nonquad & ctx.topo.vertex_is_used)
+    interior2 = ~ctx.v_boundary & (ctx.valence == 2)  # no polyhedron: knot insertion with BLZ
+    cand = np.flatnonzero((lev.rule != SMOOTH) & ~ctx.v_nonquad & ctx.topo.vertex_is_used & ~interior2)
     groups: dict[tuple, list] = {}
     for v in cand.tolist():
         kind = int(lev.rule[v])
@@ -723,7 +742,11 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     if nonuniform:
         _check_nonuniform_support(ctx, seed)
         eps = np.flatnonzero(
-            ~ctx.v_boundary & (ctx.valence != 4) & (par.rule == SMOOTH) & ctx.topo.vertex_is_used
+            ~ctx.v_boundary
+            & (ctx.valence != 4)
+            & (ctx.valence > 2)  # valence 2: knot insertion and [LFS16]'s vertex rule (docstring)
+            & (par.rule == SMOOTH)
+            & ctx.topo.vertex_is_used
         )
         _ep_rows(ctx, eps, angles, claims)
         if seed:
@@ -797,19 +820,22 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
 
 def _lfs_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
     """[LFS16]'s vertex rule (``eigen_polyhedron.vertex_rule_weights``) for smooth vertices of
-    valence != 4 that no EP solve claimed: a semi-sharp vertex whose tags fade this step."""
+    valence != 4 that no EP solve claimed: a semi-sharp vertex whose tags fade this step, an
+    interior vertex of valence 2 (Catmull-Clark's mask there, module docstring)."""
     from . import eigen_polyhedron as eig
 
     for vv, sc in zip(v.tolist(), scale.tolist()):
         ring = ctx.topo.one_ring(vv)
-        if ctx.v_boundary[vv] or ring.size < 3:
+        if ctx.v_boundary[vv] or ring.size < 2:
             raise UnsupportedError(
                 f"non-uniform intervals at vertex {vv} (valence {int(ctx.valence[vv])}): no "
                 f"smooth rule for it",
                 ctx.mesh.where("vertex", vv),
             )
         cols = np.concatenate([[vv], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
-        rows.add(ctx.nf + ctx.ne + vv, cols, sc * eig.vertex_rule_weights(ctx.d_h[ring]))
+        # valence 2: the rule does not depend on the intervals (zero ones included)
+        d = ctx.d_h[ring] if ring.size > 2 else np.ones(2)
+        rows.add(ctx.nf + ctx.ne + vv, cols, sc * eig.vertex_rule_weights(d))
 
 
 def _edge_touches_nonquad(ctx: _Context, e: np.ndarray) -> np.ndarray:
@@ -836,15 +862,6 @@ def _fractional_weight(ctx: _Context) -> np.ndarray:
 
 def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
     """Refuse what the non-uniform rules here do not define (module docstring)."""
-    v2 = np.flatnonzero(~ctx.v_boundary & (ctx.valence == 2) & ctx.topo.vertex_is_used)
-    if v2.size:
-        v = int(v2[0])
-        raise UnsupportedError(
-            f"vertex {v} has valence 2: the non-uniform subdivision rules (seed 000, [LFS16]) "
-            f"need valence >= 3 inside the mesh (with uniform knot intervals it subdivides by "
-            f"Catmull-Clark's rules)",
-            ctx.mesh.where("vertex", v),
-        )
     # Non-quad faces: the child's strips must stay consistent.
     h = np.flatnonzero(ctx.ksize != 4)
     bad = h[ctx.d_h[ctx.nxt[h]] != ctx.d_h[ctx.prv[h]]]
@@ -1077,6 +1094,10 @@ def _local_masks(ctx: _Context, ids: np.ndarray, rules: str, angles: str, tangen
         n = ring.size
         cols = np.concatenate([[v], ctx.dest[ring], ctx.dest[ctx.nxt[ring]]])
         d = ctx.d_h[ring]
+        if n == 2:  # Catmull-Clark's 1-ring matrix at any intervals (module docstring)
+            out[0].add(np.full(cols.size, i), cols, np.array([2.0, 2.0, 2.0, 0.5, 0.5]) / 7.0)
+            undefined[i] = True
+            continue
         if ctx.uniform:  # Catmull-Clark's limit mask (OpenSubdiv's assignSmoothLimitMask)
             lim = np.concatenate([[n / (n + 5.0)], np.full(n, 4.0 / (n * (n + 5.0))), np.full(n, 1.0 / (n * (n + 5.0)))])
         else:
@@ -1141,7 +1162,8 @@ def limit_tangents(
     """(n_vertices, 2, 3) two tangent vectors of the limit surface at every vertex; NaN where the
     surface has no single tangent plane or this version does not compute it (corners; the
     second vector at crease vertices, where only the crease direction is given; seed-rule darts
-    of valence != 4; isolated vertices).
+    of valence != 4; interior vertices of valence 2, where Catmull-Clark's eigenvalue -1/4
+    matches the subdominant 1/4 in modulus; isolated vertices).
 
     Regular vertex: parametric derivatives of the NURBS limit along the spokes ``E_0`` and
     ``E_1`` (``curve_derivative_weights``; first x second points along the faces' normal).

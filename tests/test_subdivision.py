@@ -17,7 +17,7 @@ from patching.errors import KnotError, MeshError, UnsupportedError
 from patching.mesh import from_arrays
 from patching.obj import read_obj, write_obj
 from patching.primitives import open_grid, torus_grid
-from patching.subdivision import limit_points, subdivide, subdivision_operator
+from patching.subdivision import limit_points, limit_tangents, subdivide, subdivision_operator
 from tests.conftest import shape_files
 
 # Round-off: every reference point is a short sum of O(1) weights times coordinates of size
@@ -1270,23 +1270,102 @@ def _valence2_square(intervals, creases=None):
     return from_arrays(v, faces, intervals={(0, 1): intervals[0], (1, 2): intervals[1]}, creases=creases or {})
 
 
-@pytest.mark.parametrize("creases", [None, {(0, 4): 10.0, (4, 2): 10.0}], ids=["untagged", "crease through"])
-def test_valence2_with_nonuniform_intervals_refused_naming_the_vertex(creases):
-    """No non-uniform rule is defined at an interior vertex of valence 2: one line of the error
-    family naming it, whether tagged or not (a crease through it used to pass silently with
-    unverified knot-insertion rows); uniform intervals subdivide it (Catmull-Clark)."""
-    with pytest.raises(UnsupportedError) as info:
-        subdivision_operator(_valence2_square((1.0, 2.0), creases))
-    err = info.value
-    assert "vertex 4 has valence 2" in err.what and err.where == "vertex 4"
-    assert "\n" not in str(err)
-    S, child = subdivision_operator(_valence2_square((1.5, 1.5), creases))
+def _valence2_grid(k=7):
+    """Open k x k grid whose middle face (a, b, c, d) is split by an interior vertex X (the last
+    vertex, lifted off the plane) into (a, b, c, X) and (a, X, c, d): X has valence 2 and its
+    two spokes lie in different strips (on a closed grid the strips would merge)."""
+    grid = open_grid(k, k)
+    faces = [list(map(int, grid.face(f))) for f in range(grid.n_faces)]
+    a, b, c, d = faces[len(faces) // 2]
+    x = grid.vertices[[a, b, c, d]].mean(0) + np.array([0.1, -0.05, 0.3])
+    x_id = grid.n_vertices
+    faces[len(faces) // 2] = [a, b, c, x_id]
+    faces.append([a, x_id, c, d])
+    return from_arrays(np.vstack([grid.vertices, x]), faces)
+
+
+def _cc_valence2_block():
+    """Catmull-Clark's one-step matrix on the 1-ring [V, E_0, E_1, F_0, F_1] of a valence-2
+    vertex, faces (V, E_0, F_0, E_1) and (V, E_1, F_1, E_0), written from the classic rules."""
+    m = np.zeros((5, 5))
+    m[0] = [1 / 8, 3 / 8, 3 / 8, 1 / 16, 1 / 16]  # (n-2)/n V + (sum E + sum face points)/n^2
+    m[1] = [3 / 8, 3 / 8, 1 / 8, 1 / 16, 1 / 16]  # (V + E_0 + two face points) / 4
+    m[2] = [3 / 8, 1 / 8, 3 / 8, 1 / 16, 1 / 16]
+    m[3] = [1 / 4, 1 / 4, 1 / 4, 1 / 4, 0]  # centroids
+    m[4] = [1 / 4, 1 / 4, 1 / 4, 0, 1 / 4]
+    return m
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_valence2_with_nonuniform_intervals(seed):
+    """An interior valence-2 vertex with spoke intervals d_0 != d_1 (ratio up to 5): rows sum to
+    one and are non-negative (so every limit point is a convex combination of control
+    points); V's row is Catmull-Clark's whatever the intervals, and after one step the whole
+    1-ring block of S is Catmull-Clark's valence-2 matrix (the intervals drop out once both
+    halves of a spoke carry one interval: module docstring); the limit point (CC's mask) is
+    that of repeated subdivision, whose error falls by the subdominant 1/4 a step."""
+    from patching.subdivision import limit_operator
+    from patching.topology import Topology
+
+    mesh = _random_strip_intervals(_valence2_grid(5), ratio=5.0, seed=seed)
+    x = mesh.n_vertices - 1
+    t = Topology(mesh)
+    ring = t.one_ring(x)
+    assert t.valence[x] == 2 and t.halfedge_interval[ring][0] != t.halfedge_interval[ring][1]
+    S, child = subdivision_operator(mesh)
     assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-15
-    x = child.vertices[S.shape[0] - 1]  # the vertex point of X
-    if creases is None:  # Catmull-Clark, valence 2: (sum of edge neighbours + face points) / 4
-        P = _valence2_square((1.5, 1.5)).vertices
-        f0, f1 = P[[0, 1, 2, 4]].mean(0), P[[0, 4, 2, 3]].mean(0)
-        assert np.abs(x - (P[0] + P[2] + f0 + f1) / 4).max() < 1e-15
+    assert S.data.min() > 0
+    cols = [x, *t.dest[ring], *t.dest[t.next[ring]]]
+    assert np.abs(S[S.shape[0] - mesh.n_vertices + x, cols].toarray().ravel() - _cc_valence2_block()[0]).max() < 1e-15
+    # stationary level: the 1-ring block is Catmull-Clark's
+    xc = child.n_vertices - mesh.n_vertices + x
+    tc = Topology(child)
+    rc = tc.one_ring(xc)
+    assert len(set(tc.halfedge_interval[rc].tolist())) == 2
+    Sc, _ = subdivision_operator(child)
+    nfc, nec = child.n_faces, tc.n_edges
+    rows = [nfc + nec + xc, *(nfc + tc.edge_of[rc]), *tc.face[rc]]
+    cols = [xc, *tc.dest[rc], *tc.dest[tc.next[rc]]]
+    assert np.abs(Sc[rows][:, cols].toarray() - _cc_valence2_block()).max() < 1e-15
+    # the limit point: a convex combination, equal to repeated subdivision
+    L = limit_operator(mesh)
+    assert L[x].toarray().min() >= 0 and abs(L[x].sum() - 1) < 1e-15
+    limit = L[x] @ mesh.vertices
+    level, ids, errors = mesh, np.arange(mesh.n_vertices), []
+    for _ in range(6):
+        S, level = subdivision_operator(level)
+        ids = S.shape[0] - S.shape[1] + ids
+        errors.append(np.abs(level.vertices[ids[x]] - limit).max())
+    assert errors[-1] < 1e-4 * _size(mesh)
+    assert 3.9 < errors[-2] / errors[-1] < 4.1  # the subdominant eigenvalue 1/4
+    assert np.isnan(limit_tangents(mesh)[x]).all()  # CC's -1/4: no single tangent plane
+
+
+def test_valence2_uniform_equals_catmull_clark_and_tags_pass():
+    """Uniform intervals: the whole step equals the BLZ/Catmull-Clark reference (the valence-2
+    vertex included); non-uniform with a crease through the valence-2 vertex (the crease
+    curve's rules), or a dart or corner there (knot insertion with BLZ's edge correction):
+    affine rows, no refusal."""
+    mesh = _valence2_grid(5)
+    S, _ = subdivision_operator(mesh)
+    assert np.abs(S @ mesh.vertices - reference_points(mesh, "blz")).max() <= TIGHT * _size(mesh)
+    x = mesh.n_vertices - 1
+    a, c = [int(v) for v in mesh.face(mesh.n_faces - 1)][::2]
+    for creases, corners in (({(a, x): 10.0, (x, c): 10.0}, {}), ({(a, x): 10.0}, {}), ({}, {x: 10.0})):
+        tagged = _random_strip_intervals(from_arrays(mesh.vertices, [list(mesh.face(f)) for f in range(mesh.n_faces)], creases=creases, corners=corners), seed=3)
+        S, _ = subdivision_operator(tagged)
+        assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-15
+        if len(creases) == 2:  # crease vertex: the curve rule along a - X - c, whose ends a and
+            # c are darts (valence 5, one sharp edge): the mirror interval beyond them
+            from patching.subdivision_rules import curve_vertex_weights
+            from patching.topology import Topology
+
+            t = Topology(tagged)
+            da, dc = (float(t.edge_interval[t.edges.tolist().index(sorted(e))]) for e in ([a, x], [x, c]))
+            assert da != dc
+            row = S[S.shape[0] - tagged.n_vertices + x].toarray().ravel()
+            assert np.abs(row[[a, x, c]] - np.array(curve_vertex_weights(da, da, dc, dc))).max() < 1e-15
+            assert np.count_nonzero(row) == 3
 
 
 def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
