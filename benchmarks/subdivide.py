@@ -182,41 +182,13 @@ def _ep_block(mesh, S):
     return S[rows][:, cols].toarray(), t.halfedge_interval[ring]
 
 
-def blending_maxima_table(levels: int = 5) -> None:
-    """Seed 001's claim for its modified angles: the EP's blending function has a single local
-    maximum (it tests this as "after five levels, one vertex higher than all its neighbours").
-    Measured here on the configurations of its figures, standard vs modified angles."""
-    from patching.mesh import from_arrays
-    from patching.topology import Topology
+def blending_maxima_table() -> None:
+    """Seed 001's single-maximum claim, standard vs modified angles, on its figures' configurations
+    (``benchmarks/modified_angles.py``, which also runs the paper's random test)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from modified_angles import figures_table
 
-    configs = {
-        "Fig 1  n=5 1,15,1,1,15": [1, 15, 1, 1, 15],
-        "Fig 6  n=3 1,10,10": [1, 10, 10],
-        "Fig 7  n=5 1,1,1e4,1e4,1e4": [1, 1, 1e4, 1e4, 1e4],
-        "Fig 8  n=7 100,100,1,1,100,100,100": [100, 100, 1, 1, 100, 100, 100],
-        "Fig 9  n=8 100,100,1,1,100,100,1,1": [100, 100, 1, 1, 100, 100, 1, 1],
-        "Fig 10 n=5 1,1,1,5,5": [1, 1, 1, 5, 5],
-        "Fig 12 n=7 5000,1,1,5000,...": [5000, 1, 1, 5000, 5000, 5000, 5000],
-    }
-    print(f"\nSeed 001 property, measured: local maxima of the EP's blending function after {levels} steps")
-    print(f"  {'configuration':38} {'standard':>9} {'modified':>9}")
-    for name, d in configs.items():
-        counts = []
-        for angles in ("standard", "modified"):
-            mesh = _blending_disk(d, from_arrays)
-            try:
-                for _ in range(levels):
-                    _, mesh = subdivision_operator(mesh, angles=angles)
-            except Exception as exc:  # noqa: BLE001 - a measurement table, report and go on
-                counts.append(type(exc).__name__)
-                continue
-            t = Topology(mesh)
-            z = mesh.vertices[:, 2]
-            best = np.full(mesh.n_vertices, -np.inf)
-            np.maximum.at(best, t.edges[:, 0], z[t.edges[:, 1]])
-            np.maximum.at(best, t.edges[:, 1], z[t.edges[:, 0]])
-            counts.append(str(int(np.sum(~t.vertex_is_boundary & (z > best)))))
-        print(f"  {name:38} {counts[0]:>9} {counts[1]:>9}")
+    figures_table()
 
 
 def _blending_disk(d, from_arrays, rings: int = 3):

@@ -222,6 +222,55 @@ def test_modified_angles_valence4_and_small_interval():
     assert abs(th[0] - math.pi / 2) < 1e-6 and abs(th[-1] - math.pi / 2) < 1e-6
 
 
+def _seed001_angles(d):
+    """Seed 001's angle rule transcribed literally (eq. 10 and the case analysis after it, the
+    second "(2) n != 3" read as n = 3), loop by loop; returns (angles, branch)."""
+    n = len(d)
+    p = [d[i] * d[(i + 1) % n] for i in range(n)]
+    pre = []
+    for i in range(n):
+        k = n * p[i] / sum(p)
+        if k < 1:
+            pre.append(math.pi / 2 - (2 - 8 / n) * math.atan(k))
+        else:
+            pre.append((4 / n - 0.5) * math.pi + (2 - 8 / n) * math.atan((1 + k) / 2))
+    total, tmax = sum(pre), max(pre)
+    is_max = [abs(t - tmax) <= 1e-12 * tmax for t in pre]
+    n_max = sum(is_max)
+    if n == 3:
+        return [2 * math.pi / total * t for t in pre], "n = 3"
+    if tmax * n_max < 2 * math.pi:
+        scale = (2 * math.pi - tmax * n_max) / (total - tmax * n_max)
+        return [t if m else scale * t for t, m in zip(pre, is_max)], "keep maxima"
+    if n_max == n:
+        return [2 * math.pi / total * t for t in pre], "all maximal"
+    half = max(n_max, n - n_max)
+    return [
+        2 * math.pi * half / (n * tmax * n_max) * t if m else 2 * math.pi * (n - half) / (n * (total - tmax * n_max)) * t
+        for t, m in zip(pre, is_max)
+    ], "split"
+
+
+def test_modified_angles_follow_seed001_text_in_every_branch():
+    """eigen_angles("modified") against the literal transcription, on seed 001's figure
+    configurations, random ones, and constructed ones reaching each branch (Fig. 5's 1, 10,
+    10, 10, 10 keeps its two sectors beside the short spoke at 86.4 degrees)."""
+    cases = [[1, 15, 1, 1, 15], [1, 10, 10, 10, 10], [1, 10, 10], [1, 1, 1e4, 1e4, 1e4],
+             [100, 100, 1, 1, 100, 100, 100], [100, 100, 1, 1, 100, 100, 1, 1], [1, 1, 1, 5, 5],
+             [5000, 1, 1, 5000, 5000, 5000, 5000], [1, 1e-4, 1, 1e-4, 1, 1e-4, 1, 1e-4, 1, 1e-4, 1, 1]]
+    rng = np.random.default_rng(1)
+    cases += [list(rng.uniform(1e-6, 1, n)) for n in (3, 5, 6, 7, 8) for _ in range(20)]
+    cases += [list(10.0 ** rng.uniform(-4, 0, n)) for n in (5, 6, 8, 12) for _ in range(20)]
+    branches = set()
+    for d in cases:
+        expected, branch = _seed001_angles(d)
+        branches.add(branch)
+        np.testing.assert_allclose(ep.eigen_angles(d, "modified"), expected, rtol=1e-13)
+    assert branches == {"n = 3", "keep maxima", "split"}, branches  # "all maximal" = uniform
+    th = ep.eigen_angles([1, 10, 10, 10, 10], "modified")
+    assert math.degrees(th[0]) == pytest.approx(86.44, abs=0.01) and th[0] == pytest.approx(th[4], rel=1e-15)
+
+
 def test_vertex_rule_uniform_and_affine():
     for n in range(3, 10):
         w = ep.vertex_rule_weights([1.0] * n)
