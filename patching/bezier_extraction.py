@@ -97,11 +97,14 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     ep = is_ep[corner]  # (f, 4)
     I = iv[h]  # interval along side k
     twin = topo.twin[h]
-    # Width of the neighbour across side k: 0 beyond an open boundary (the phantom leg of a
-    # clamped end); across an infinitely sharp edge the face's own width (the mirrored
-    # neighbour of a crease: phantom row P_-1 = 2 P_0 - P_1, the limit of the crease rules).
+    # Width of the neighbour across side k; across an infinitely sharp edge, and beyond an
+    # open boundary, the face's own width (the mirrored neighbour of a crease: phantom row
+    # P_-1 = 2 P_0 - P_1, the limit of the crease rules).  At a clamped side the face is in
+    # the zero strip, so its own width across the boundary is 0: the clamped end's phantom
+    # leg.  Under interpolateboundary 0 the mirror gives the faces one ring inside exactly
+    # their patches of modes 1 and 2 (Catmull-Clark's, with uniform knots).
     W = np.where(twin >= 0, iv[topo.next[np.maximum(twin, 0)]], 0.0)
-    across_sharp = sharp_edge[topo.edge_of[h]]
+    across_sharp = sharp_edge[topo.edge_of[h]] | (twin < 0)
     own = np.roll(I, -1, axis=1)  # the face's width across side k is the interval of side k+1
     W = np.where(across_sharp, own, W)
 

@@ -35,10 +35,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import UnsupportedError
 from .mesh import INFINITELY_SHARP
 from .topology import Topology
 
-__all__ = ["Features", "features", "sharp_edges", "corner_vertices"]
+__all__ = ["Features", "features", "sharp_edges", "corner_vertices", "faces_without_surface", "refuse_singular_rings"]
 
 CREASE_SECTOR = np.pi
 CORNER_SECTOR = np.pi / 2
@@ -66,6 +67,18 @@ def corner_vertices(topo: Topology, sharp: np.ndarray | None = None) -> np.ndarr
     if topo.mesh.interpolate_boundary == 1:
         corner |= topo.vertex_is_boundary & (topo.valence == 2)
     return corner & topo.vertex_is_used
+
+
+def faces_without_surface(topo: Topology) -> np.ndarray:
+    """(f,) bool: faces that give no patch whatever their intervals: holes (``t hole``) and,
+    under interpolateboundary 0, every face with a vertex on the open boundary (OpenSubdiv's
+    "none": the limit surface stops one ring inside; DESIGN 1).  Their control points still
+    shape the faces around them, whose rules do not change."""
+    out = np.zeros(topo.mesh.n_faces, dtype=bool)
+    out[list(topo.mesh.holes)] = True
+    if topo.mesh.interpolate_boundary == 0:
+        out[np.unique(topo.face[topo.vertex_is_boundary[topo.origin]])] = True
+    return out
 
 
 @dataclass(frozen=True)
@@ -121,6 +134,8 @@ def features(topo: Topology) -> Features:
     needs |= corner & (count == 0) & topo.vertex_is_used
     needs |= dart
     needs |= (count == 0) & ~topo.vertex_is_boundary & (topo.valence == 2)
+    if topo.mesh.interpolate_boundary == 0:  # boundary vertices bound no surface (no_surface)
+        needs &= ~topo.vertex_is_boundary
     return Features(sharp, count, corner, interval_sum, needs, dart)
 
 
@@ -156,3 +171,32 @@ def _largest_sector(spoke_sharp: np.ndarray, boundary: bool) -> np.ndarray:
     sizes = best + 1  # faces in a sector = interior spokes + 1
     sizes = np.minimum(sizes, patches)
     return np.where(spoke_sharp.any(axis=1), sizes, 0)
+
+
+def refuse_singular_rings(topo: Topology, feats: Features, eps: np.ndarray, forced: np.ndarray) -> None:
+    """Refuse (UnsupportedError naming it) a valence-4 vertex taken through the EP path with a
+    whole smooth ring, a corner tag without sharp edges or ``force_extraordinary``, when a
+    spoke leads to another EP.
+
+    Why: every fan of valence 4 that closes (Lemma 2 of seed 002) has beta_i(0) = 0 on its
+    spokes, so the G_1 equations at the vertex (section 3.4) read 5 alpha_A (f_i - s_i) +
+    5 alpha_B (f_{i-1} - s_i) + b1_i (s_i - P00) = 0: a cyclic system in the four face points
+    that is singular (for uniform intervals alpha_A = alpha_B: its alternating sum must
+    vanish), and the terms b1_i of spokes ending at EPs break that condition (the vertex
+    enclosure constraint), so no G1 surface of this form exists there.  With regular far ends
+    b1 = 0 and it is solvable; a sharp spoke or a dart's breaks the cycle."""
+    eps = np.asarray(eps, dtype=np.int64)
+    is_ep = np.zeros(topo.n_vertices, dtype=bool)
+    is_ep[eps] = True
+    interpolated = feats.corner & (feats.count == 0)
+    candidates = eps[(topo.valence[eps] == 4) & ~topo.vertex_is_boundary[eps] & (interpolated[eps] | np.isin(eps, forced))]
+    for v in candidates.tolist():
+        ends = topo.dest[topo.one_ring(v)]
+        if is_ep[ends].any():
+            w = int(ends[is_ep[ends]][0])
+            why = "a corner tag on" if interpolated[v] else "forcing the EP path at"
+            raise UnsupportedError(
+                f"{why} vertex {v} of valence 4 next to the extraordinary point {w}: the G1 conditions "
+                "around it have no solution (a valence-4 ring with a spoke to another EP)",
+                topo.mesh.where("corner" if interpolated[v] else "vertex", v),
+            )

@@ -21,7 +21,7 @@ from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction, regular_face_points
 from .errors import KnotError, UnsupportedError
-from .features import Features, features
+from .features import Features, faces_without_surface, features, refuse_singular_rings
 from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
 from .patch_topology import patch_topology
@@ -120,12 +120,11 @@ def build_operator(
     feats = features(topo)
     spans = face_spans(topo)
     _refuse_torn_knots(topo, spans)
-    # Hole faces (OpenSubdiv's `t hole`) give no patch; their control points still shape the
-    # faces around them, whose rules do not change.
-    has_patch = np.all(spans > 0, axis=1)
-    has_patch[list(mesh.holes)] = False
+    # Hole faces (OpenSubdiv's `t hole`) and, under interpolateboundary 0, faces at the open
+    # boundary give no patch; their control points still shape the faces around them, whose
+    # rules do not change (features.faces_without_surface).
+    has_patch = np.all(spans > 0, axis=1) & ~faces_without_surface(topo)
     faces = np.flatnonzero(has_patch)
-    _refuse_boundary_patches(topo, faces)
     # EPs: smooth interior vertices of valence != 4, and vertices whose sectors between sharp
     # edges need anchors (features); corners and crease vertices whose fans the bicubic
     # construction reproduces are not EPs, whatever their valence.
@@ -136,6 +135,7 @@ def build_operator(
         v = int(forced[topo.vertex_is_boundary[forced]][0])
         raise UnsupportedError(f"vertex {v} is on a boundary: it cannot be forced extraordinary", mesh.where("vertex", v))
     _refuse_degenerate_eps(topo, eps)
+    refuse_singular_rings(topo, feats, eps, forced)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
     extraction = cubic_extraction(topo, is_ep, sharp_edge=feats.sharp, corner_vertex=feats.corner)
@@ -268,24 +268,6 @@ def _refuse_torn_knots(topo: Topology, spans: np.ndarray) -> None:
                 "knot of multiplicity 4 tears the surface",
                 mesh.where("interval", (min(a, b), max(a, b))),
             )
-
-
-def _refuse_boundary_patches(topo: Topology, faces: np.ndarray) -> None:
-    """Under interpolateboundary 0 the faces on the boundary give no surface in OpenSubdiv;
-    that mode is not built yet for faces of nonzero area there (1 and 2 are)."""
-    mesh = topo.mesh
-    if mesh.interpolate_boundary in (1, 2):
-        return
-    h = mesh.face_offsets[faces][:, None] + np.arange(4)
-    open_side = (topo.twin[h] < 0) | topo.vertex_is_boundary[topo.origin[h]]
-    bad = np.flatnonzero(open_side.any(axis=1))
-    if bad.size:
-        f = int(faces[bad[0]])
-        raise UnsupportedError(
-            f"face {f} lies on an open boundary with a non-zero knot interval, and "
-            "interpolateboundary 0 is not supported yet (use 1 or 2, or zero outer strips)",
-            mesh.where("face", f),
-        )
 
 
 def _refuse_degenerate_eps(topo: Topology, eps: np.ndarray) -> None:

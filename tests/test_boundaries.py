@@ -78,3 +78,41 @@ def test_hole_faces_give_no_patch_and_leave_their_neighbours_unchanged():
     assert not part.topology.is_closed and part.topology.edge_use_count.min() == 1
     angle, gap = shared_edge_normal_jumps(part)
     assert angle <= 1e-7 and gap <= 1e-12 * part.size
+
+
+@pytest.mark.parametrize("ratio", [1.0, 6.0])
+def test_mode_0_drops_the_faces_at_the_boundary_and_keeps_the_rest(ratio):
+    """interpolateboundary 0 (OpenSubdiv's "none"): faces with a vertex on the open boundary
+    give no surface; every other face keeps exactly the patch it has under mode 1 (its
+    stencil never reaches the boundary rules), so the surface is the non-uniform bicubic
+    B-spline of the inner control points, a G1 shell."""
+    from tests.test_g1_patches import with_random_intervals
+
+    one = with_random_intervals(jittered_grid(8, 7, mode=1), ratio, seed=5)
+    zero = patching.from_arrays(one.vertices, one.quads(), intervals=dict(one.intervals), interpolate_boundary=0, name="none")
+    full, inner = patching.build(one), patching.build(zero)
+    assert inner.n_patches == (8 - 3) * (7 - 3)
+    nets = {f: net for _, _, f, net in full.patches()}
+    for _, _, f, net in inner.patches():
+        np.testing.assert_array_equal(net, nets[f])
+    angle, gap = shared_edge_normal_jumps(inner)
+    assert angle <= 1e-7 and gap <= 1e-12 * inner.size
+
+
+def test_mode_0_with_an_extraordinary_point_next_to_the_boundary():
+    """bipyramid-5 without one face at a pole, mode 0: the faces around the open pole give no
+    surface; the rest is G1, and faces far from the opening equal the closed mesh's."""
+    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+
+    base = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, seed=3)
+    topo = patching.Topology(base)
+    pole = base.n_vertices - 2
+    drop = int(topo.face[topo.outgoing[pole]])
+    faces = [list(base.face(f)) for f in range(base.n_faces) if f != drop]
+    mesh = patching.from_arrays(base.vertices, faces, intervals=dict(base.intervals), interpolate_boundary=0, name="open")
+    surface = patching.build(mesh)
+    open_topo = patching.Topology(mesh)
+    touching = {int(f) for f in open_topo.face[open_topo.vertex_is_boundary[open_topo.origin]]}
+    assert {f for _, _, f, _ in surface.patches()} == set(range(mesh.n_faces)) - touching
+    angle, gap = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-7 and gap <= 1e-12 * surface.size

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from patching import UnsupportedError, build_operator
+from patching import build_operator
 from patching.primitives import open_grid, torus_grid
 from tests.strategies import relabelled, reversed_orientation, torus_meshes
 
@@ -99,16 +99,6 @@ def test_clamped_open_grid_is_an_open_shell_topology():
     assert len(op.groups[0].faces) == 4 * 3
     assert not op.topology.is_closed
     assert op.topology.edge_use_count.min() == 1
-
-
-def test_interpolateboundary_0_with_boundary_patches_is_refused_with_the_face_named():
-    from patching import from_arrays
-
-    grid = open_grid(6, 6)
-    mesh = from_arrays(grid.vertices, grid.quads(), interpolate_boundary=0)
-    with pytest.raises(UnsupportedError, match="interpolateboundary 0") as info:
-        build_operator(mesh)
-    assert "face" in info.value.where
 
 
 def test_import_patching_loads_no_opencascade():

@@ -275,3 +275,23 @@ def test_high_valence_poles(n):
     assert_g1_with_exact_creases(mesh, surface)
     report = check_continuity(to_shape(surface))
     assert report.valid and report.n_solids == 1 and report.max_smooth_normal_jump_deg <= 1e-6
+
+
+def test_corner_tag_on_a_valence_4_vertex_next_to_an_ep_is_refused():
+    """The one ring the construction cannot make G1 (features.refuse_singular_rings): found by
+    a random stress test of tags, it is refused in one line naming the vertex; the same tag
+    away from EPs builds (G1)."""
+    base = quad_mesh_with_eps("bipyramid-5")
+    topo = Topology(base)
+    pole = base.n_vertices - 2
+    beside = int(topo.dest[topo.outgoing[pole]])
+    assert topo.valence[beside] == 4
+    mesh = patching.from_arrays(base.vertices, base.quads(), corners={beside: 10.0})
+    with pytest.raises(patching.UnsupportedError, match=f"vertex {beside} of valence 4 next to the extraordinary point"):
+        patching.build_operator(mesh)
+    with pytest.raises(patching.UnsupportedError, match="forcing the EP path"):
+        patching.build_operator(base, force_extraordinary=[beside])
+    regular = [v for v in range(base.n_vertices) if topo.valence[v] == 4
+               and not (topo.valence[topo.dest[topo.one_ring(v)]] != 4).any()]
+    away = patching.from_arrays(base.vertices, base.quads(), corners={regular[0]: 10.0})
+    assert_g1_with_exact_creases(away, patching.build(away))
