@@ -174,29 +174,27 @@ def _largest_sector(spoke_sharp: np.ndarray, boundary: bool) -> np.ndarray:
 
 
 def refuse_singular_rings(topo: Topology, feats: Features, eps: np.ndarray, forced: np.ndarray) -> None:
-    """Refuse (UnsupportedError naming it) a valence-4 vertex taken through the EP path with a
-    whole smooth ring, a corner tag without sharp edges or ``force_extraordinary``, when a
-    spoke leads to another EP.
+    """Refuse (UnsupportedError naming it) a valence-4 vertex forced through the EP path
+    (``force_extraordinary``, a check of the construction) when a spoke leads to another EP.
 
-    Why: every fan of valence 4 that closes (Lemma 2 of seed 002) has beta_i(0) = 0 on its
-    spokes, so the G_1 equations at the vertex (section 3.4) read 5 alpha_A (f_i - s_i) +
+    Why: the angle configuration of a valence-4 ring is the regular one, with beta_i(0) = 0 on
+    every spoke, so the G_1 equations at the vertex (section 3.4) read 5 alpha_A (f_i - s_i) +
     5 alpha_B (f_{i-1} - s_i) + b1_i (s_i - P00) = 0: a cyclic system in the four face points
     that is singular (for uniform intervals alpha_A = alpha_B: its alternating sum must
     vanish), and the terms b1_i of spokes ending at EPs break that condition (the vertex
-    enclosure constraint), so no G1 surface of this form exists there.  With regular far ends
-    b1 = 0 and it is solvable; a sharp spoke or a dart's breaks the cycle."""
+    enclosure constraint).  With regular far ends b1 = 0 and it is solvable.  Corner-tagged
+    smooth vertices of valence 4 avoid it with a skewed fan (``g1_patches.FOUR_FAN``)."""
     eps = np.asarray(eps, dtype=np.int64)
     is_ep = np.zeros(topo.n_vertices, dtype=bool)
     is_ep[eps] = True
     interpolated = feats.corner & (feats.count == 0)
-    candidates = eps[(topo.valence[eps] == 4) & ~topo.vertex_is_boundary[eps] & (interpolated[eps] | np.isin(eps, forced))]
+    candidates = eps[(topo.valence[eps] == 4) & ~topo.vertex_is_boundary[eps] & np.isin(eps, forced) & ~interpolated[eps]]
     for v in candidates.tolist():
         ends = topo.dest[topo.one_ring(v)]
         if is_ep[ends].any():
             w = int(ends[is_ep[ends]][0])
-            why = "a corner tag on" if interpolated[v] else "forcing the EP path at"
             raise UnsupportedError(
-                f"{why} vertex {v} of valence 4 next to the extraordinary point {w}: the G1 conditions "
-                "around it have no solution (a valence-4 ring with a spoke to another EP)",
-                topo.mesh.where("corner" if interpolated[v] else "vertex", v),
+                f"forcing the EP path at vertex {v} of valence 4 next to the extraordinary point {w}: "
+                "the G1 conditions around it have no solution with the regular angles",
+                topo.mesh.where("vertex", v),
             )

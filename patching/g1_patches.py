@@ -129,12 +129,25 @@ class EPGroup:
         return [i for i in range(self.n) if i != self.gap]
 
 
+#: The fan of an interpolated (corner-tagged) smooth vertex of valence 4.  Every closed fan of
+#: valence 4 (Lemma 2) has beta = 0 on two opposite spokes; with equal angles on all four, the
+#: G_1 equations at the vertex lose every q_i and become a cyclic system in the face points
+#: that is singular, and a spoke to another EP breaks its solvability condition.  This fan,
+#: (pi/2 + delta, pi/2 + delta, pi/2 - delta, pi/2 - delta), keeps beta != 0 on spokes 1 and 3
+#: (their q_i take up the condition) and sin(theta_{i-1}) = sin(theta_i) at every spoke, so
+#: lengths l_i = d_i satisfy eq. (5).  delta = pi / 12: a mild skew.
+FOUR_FAN = np.pi / 2 + np.array([1.0, 1.0, -1.0, -1.0]) * np.pi / 12
+FOUR_FAN.setflags(write=False)
+
+
 def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.ndarray:
     """(n,) angle of every patch of a ring with sharp spokes (``features``): each sector's sum
     (pi at a crease vertex, pi / 2 at a corner; 2 pi when an interpolated vertex has no sharp
     spoke) shared equally by its patches; NaN for a boundary ring's gap."""
     n = sharp.size
     theta = np.full(n, np.nan)
+    if not sharp.any() and n == 4:  # an interpolated smooth valence-4 vertex: a skewed fan
+        return FOUR_FAN.copy()
     if not sharp.any() or (not boundary and sharp.sum() == 1):  # no sector ends, or a dart
         theta[:] = 2 * np.pi / n
         return theta
@@ -497,18 +510,21 @@ class G1Assembly:
 def _sector_beta(g: EPGroup) -> np.ndarray:
     """(E, n) beta(0) of every spoke of a ring with fixed sector angles; NaN on sharp spokes.
 
-    Inside a sector of angle theta per patch, the fan v_i = d_i (cos phi_i, sin phi_i) (seed
-    002 eq. 5 holds with l_i = d_i) satisfies alpha_i v_{i+1} + gamma_i v_{i-1} = 2 d_{i-1}
-    d_i d_{i+1} cos(theta) v_i / d_i, so beta_i(0) = 2 d_{i-1} d_{i+1} cos(theta) (the
-    ``angle_configuration`` b with the g1_constraints sign, [32]'s uniform rule per sector).
-    With these lengths the two crease legs of a sector of angle pi come out in the ratio of
-    their intervals, the ratio in which the crease B-spline's Bezier legs stand, so G_0 of the
-    inner spokes is consistent with both pinned crease legs (a fitted fan need not be)."""
+    The fan v_i = d_i (cos phi_i, sin phi_i) satisfies seed 002's eq. (5) with l_i = d_i
+    wherever sin(theta_{i-1}) = sin(theta_i) (equal angles inside a sector; FOUR_FAN), and
+    then alpha_i v_{i+1} + gamma_i v_{i-1} = beta_i v_i with
+    beta_i(0) = d_{i-1} d_{i+1} sin(theta_{i-1} + theta_i) / sin(theta_{i-1}) (the printed b of
+    ``angle_configuration`` with the g1_constraints sign; 2 d_{i-1} d_{i+1} cos(theta) for
+    equal angles, [32]'s uniform rule per sector).  With these lengths the two crease legs of
+    a sector of angle pi come out in the ratio of their intervals, the ratio in which the
+    crease B-spline's Bezier legs stand, so G_0 of the inner spokes is consistent with both
+    pinned crease legs (a fitted fan need not be)."""
     theta_before = np.roll(g.theta, 1)
-    beta = 2 * np.roll(g.d, 1, axis=1) * np.roll(g.d, -1, axis=1) * np.cos(g.theta)[None, :]
+    ratio = np.sin(theta_before + g.theta) / np.sin(theta_before)
+    beta = np.roll(g.d, 1, axis=1) * np.roll(g.d, -1, axis=1) * ratio[None, :]
     beta[:, g.unconstrained] = np.nan
     smooth = ~g.unconstrained
-    assert np.allclose(theta_before[smooth], g.theta[smooth]), "a smooth spoke inside one sector"
+    assert np.allclose(np.sin(theta_before[smooth]), np.sin(g.theta[smooth])), "eq. (5) needs l_i != d_i here"
     return beta
 
 

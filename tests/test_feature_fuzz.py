@@ -4,7 +4,8 @@ creases), random corner tags, every boundary mode and random strip intervals eit
 refused with one line of the error family, or build patches that are G1 across every smooth
 edge and end on the crease B-spline along every sharp one (tests/edge_checks.py).
 
-This is how the singular valence-4 ring of ``features.refuse_singular_rings`` was found."""
+This is how the singular valence-4 ring of ``features.refuse_singular_rings`` (corner tags next
+to EPs, now built with ``g1_patches.FOUR_FAN``) was found."""
 
 import warnings
 

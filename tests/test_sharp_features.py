@@ -31,6 +31,12 @@ def sharp_cube(intervals=(1.0, 1.0, 1.0), tagged=False) -> patching.ControlMesh:
     return patching.from_arrays(CUBE_VERTICES, CUBE_FACES, intervals=iv, creases={e: np.inf for e in edges}, corners=corners)
 
 
+def corner_point(net: np.ndarray, corner: int) -> np.ndarray:
+    """The patch's point at its face corner ``corner`` (0..3)."""
+    d = net.shape[0] - 1
+    return net[((0, 0), (d, 0), (d, d), (0, d))[corner]]
+
+
 def bilinear(corners: np.ndarray, s: np.ndarray, t: np.ndarray) -> np.ndarray:
     c0, c1, c2, c3 = corners
     s, t = s[:, None], t[:, None]
@@ -277,21 +283,22 @@ def test_high_valence_poles(n):
     assert report.valid and report.n_solids == 1 and report.max_smooth_normal_jump_deg <= 1e-6
 
 
-def test_corner_tag_on_a_valence_4_vertex_next_to_an_ep_is_refused():
-    """The one ring the construction cannot make G1 (features.refuse_singular_rings): found by
-    a random stress test of tags, it is refused in one line naming the vertex; the same tag
-    away from EPs builds (G1)."""
+@pytest.mark.parametrize("ratio", [1.0, 5.0])
+def test_corner_tag_on_a_valence_4_vertex_next_to_eps(ratio):
+    """Found by a random stress test of tags: with equal angles a valence-4 ring whose spokes
+    reach EPs has no G1 solution (features.refuse_singular_rings); the skewed fan of
+    g1_patches.FOUR_FAN gives one, and the tagged vertex is interpolated.  Forcing the EP path
+    there (regular angles) is refused in one line naming the vertex."""
     base = quad_mesh_with_eps("bipyramid-5")
     topo = Topology(base)
     pole = base.n_vertices - 2
     beside = int(topo.dest[topo.outgoing[pole]])
-    assert topo.valence[beside] == 4
+    assert topo.valence[beside] == 4 and (topo.valence[topo.dest[topo.one_ring(beside)]] != 4).sum() == 3
     mesh = patching.from_arrays(base.vertices, base.quads(), corners={beside: 10.0})
-    with pytest.raises(patching.UnsupportedError, match=f"vertex {beside} of valence 4 next to the extraordinary point"):
-        patching.build_operator(mesh)
-    with pytest.raises(patching.UnsupportedError, match="forcing the EP path"):
+    mesh = with_random_intervals(mesh, ratio, seed=2) if ratio > 1 else mesh
+    surface = patching.build(mesh)
+    assert_g1_with_exact_creases(mesh, surface)
+    at = [corner_point(net, list(mesh.face(face)).index(beside)) for _, _, face, net in surface.patches() if beside in mesh.face(face)]
+    assert len(at) == 4 and np.abs(np.array(at) - mesh.vertices[beside]).max() <= 1e-14
+    with pytest.raises(patching.UnsupportedError, match=f"forcing the EP path at vertex {beside}"):
         patching.build_operator(base, force_extraordinary=[beside])
-    regular = [v for v in range(base.n_vertices) if topo.valence[v] == 4
-               and not (topo.valence[topo.dest[topo.one_ring(v)]] != 4).any()]
-    away = patching.from_arrays(base.vertices, base.quads(), corners={regular[0]: 10.0})
-    assert_g1_with_exact_creases(away, patching.build(away))
