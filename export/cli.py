@@ -240,8 +240,11 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     check_output_path(out)
     start = time.perf_counter()
     mesh = patching.read_mesh(mesh_path)
-    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.angles)
-    comment = f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, angles {args.angles}"
+    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.angles, crease_method=args.crease_method)
+    comment = (
+        f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
+        f"angles {args.angles}, crease method {args.crease_method}"
+    )
     with atomic_path(out) as tmp:
         write_obj(refined, tmp, comment=comment)
         with open(tmp, "a", encoding="utf-8") as fh:
@@ -432,6 +435,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
     p.add_argument("--rules", choices=("seed", "opensubdiv"), default="seed", help="seed: non-uniform rules of seed 000 (default); opensubdiv: OpenSubdiv's, uniform intervals only")
     p.add_argument("--angles", choices=("standard", "modified"), default="standard", help="eigen-polyhedron angles at non-uniform EPs (modified: seed 001)")
+    p.add_argument(
+        "--crease-method", choices=("uniform", "chaikin"), default="uniform",
+        help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_subdivide)
 

@@ -311,6 +311,30 @@ def test_subdivide_writes_a_mesh_that_reads_back_with_its_tags(tmp_path, run_cli
     assert "t nupatch_rules 0/0/1 seed" in out.read_text()
 
 
+def test_subdivide_chaikin_creasing(tmp_path, run_cli):
+    """--crease-method chaikin (OpenSubdiv's CREASE_CHAIKIN, opensubdiv rules) is the API's;
+    with the seed rules it is refused in one line and nothing is written."""
+    import numpy as np
+
+    import patching
+    from patching.subdivision import subdivide
+
+    mesh_path = tmp_path / "ring.obj"
+    mesh_path.write_text(torus_obj(5, 4, extra="t crease 2/1/0 0 1 2.5\nt crease 2/1/0 1 2 0.5\n"))
+    out = tmp_path / "fine.obj"
+    result = run_cli("subdivide", mesh_path, "-n", "3", "--rules", "opensubdiv", "--crease-method", "chaikin", "-o", out, "-q")
+    assert result.returncode == 0, result.stderr
+    fine = patching.read_mesh(out)
+    chaikin = subdivide(patching.read_mesh(mesh_path), 3, rules="opensubdiv", crease_method="chaikin")
+    uniform = subdivide(patching.read_mesh(mesh_path), 3, rules="opensubdiv")  # differs from step 3 on
+    np.testing.assert_allclose(fine.vertices, chaikin.vertices, atol=1e-15)
+    assert np.abs(fine.vertices - uniform.vertices).max() > 1e-6
+    assert "crease method chaikin" in out.read_text()
+    refused = tmp_path / "no.obj"
+    _assert_refused(run_cli("subdivide", mesh_path, "--crease-method", "chaikin", "-o", refused), "chaikin")
+    assert not refused.exists()
+
+
 def test_subdivide_refuses_opensubdiv_rules_on_non_uniform_knots(tmp_path, run_cli):
     mesh_path = tmp_path / "ring.obj"
     mesh_path.write_text(torus_obj(5, 4, extra="t interval 2/1/0 0 4 3\n"))
