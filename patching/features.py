@@ -26,7 +26,11 @@ Sector angles (section 4.2 gives only the crease rule):
 * corner: pi / 2 per sector, Biermann-Levin-Zorin's convex corner (seed 000 section 2: convex
   unless tagged), which is never pi, so the two crease legs fix the sector's tangent plane;
 * corner tag on a vertex without sharp edges, and a dart: one sector of 2 pi (2 pi / n per
-  patch); the tagged vertex is interpolated.
+  patch, a skewed fan at valence 4: ``g1_patches.FOUR_FAN``); the tagged vertex is
+  interpolated.
+
+Under interpolateboundary 0 the faces at the boundary give no surface
+(``faces_without_surface``) and boundary vertices never take the EP path.
 """
 
 from __future__ import annotations
@@ -86,26 +90,15 @@ class Features:
     """Sharp edges, corners and the vertices whose sectors need the EP path.
 
     sharp: (e,) bool.  count: (n,) sharp edges per vertex.  corner: (n,) bool.
-    crease_partner_interval: (n,) the sum of the sharp edges' intervals at a vertex; at a crease
-    vertex, minus one leg's interval, it is the other leg's (``partner_interval``).
-    sector_vertex: (n,) bool, vertices with sharp edges or a corner tag that need anchors.
+    sector_vertex: (n,) bool, vertices that take the EP path because of their tags (sectors,
+    darts, corner tags without sharp edges) or an interior valence of 2.
     dart: (n,) bool, interior vertices with exactly one sharp edge."""
 
     sharp: np.ndarray
     count: np.ndarray
     corner: np.ndarray
-    sharp_interval_sum: np.ndarray
     sector_vertex: np.ndarray
     dart: np.ndarray
-
-    def partner_interval(self, topo: Topology, h: np.ndarray, at_origin: bool = True) -> np.ndarray:
-        """Interval of the crease leg that continues sharp half-edge h through origin(h)
-        (or dest(h)): the other sharp edge at a crease vertex; h's own (the mirrored leg, the
-        phantom 2 P_0 - P_1) at a corner, where the crease polygon ends."""
-        v = topo.origin[h] if at_origin else topo.dest[h]
-        own = topo.halfedge_interval[h]
-        other = self.sharp_interval_sum[v] - own
-        return np.where(self.corner[v] | (self.count[v] != 2), own, other)
 
 
 def features(topo: Topology) -> Features:
@@ -115,8 +108,6 @@ def features(topo: Topology) -> Features:
     ends = topo.edges[sharp]
     count = np.bincount(ends.ravel(), minlength=n)
     corner = corner_vertices(topo, sharp)
-    ivs = topo.edge_interval[sharp]
-    interval_sum = np.bincount(ends.ravel(), weights=np.repeat(ivs, 2), minlength=n)
     dart = (count == 1) & ~topo.vertex_is_boundary
     # Sector sizes: around every vertex with sharp edges, walk the ring once per valence.
     needs = np.zeros(n, dtype=bool)
@@ -136,7 +127,7 @@ def features(topo: Topology) -> Features:
     needs |= (count == 0) & ~topo.vertex_is_boundary & (topo.valence == 2)
     if topo.mesh.interpolate_boundary == 0:  # boundary vertices bound no surface (no_surface)
         needs &= ~topo.vertex_is_boundary
-    return Features(sharp, count, corner, interval_sum, needs, dart)
+    return Features(sharp, count, corner, needs, dart)
 
 
 def _rings(topo: Topology, vertices: np.ndarray):
