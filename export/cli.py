@@ -277,6 +277,17 @@ def cmd_info(args: argparse.Namespace) -> int:
         "closed": bool(not topo.edge_is_boundary.any()),
         "interpolate_boundary": mesh.interpolate_boundary,
     }
+    if info["semi_sharp_edges"] == 0 and mesh.is_quad_mesh:
+        # what the patch construction makes of the tags (patching.features); meshes that are
+        # subdivided first are classified after those steps, so they are left out here
+        from patching.features import features
+
+        feats = features(topo)
+        info["sharp_features"] = {
+            "corners": int(np.count_nonzero(feats.corner)),
+            "darts": int(np.count_nonzero(feats.dart)),
+            "sector_vertices": int(np.count_nonzero(feats.sector_vertex)),
+        }
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
@@ -285,6 +296,9 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"  extraordinary points: {ep.size}" + (f" (valence: count {valences})" if valences else ""))
     print(f"  strips: {len(strips)}, intervals from {min(intervals):g} to {max(intervals):g}")
     print(f"  sharp edges: {info['sharp_edges']}, semi-sharp: {info['semi_sharp_edges']}")
+    if "sharp_features" in info:
+        f = info["sharp_features"]
+        print(f"  corners: {f['corners']}, darts: {f['darts']}, vertices whose sectors take the EP path: {f['sector_vertices']}")
     print(f"  boundary edges: {info['boundary_edges']} ({'closed' if info['closed'] else 'open'})")
     return 0
 

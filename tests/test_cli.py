@@ -380,3 +380,17 @@ def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):
     proc.wait(timeout=600)
     assert "internal error" not in stderr and "Traceback" not in stderr
     assert proc.returncode in (0, 141)
+
+
+def test_info_reports_what_the_sharp_features_become(run_cli):
+    """`nupatch info --json` on the shipped machined bracket: its corners, darts and the
+    vertices whose sectors take the EP path (patching.features)."""
+    import json
+
+    from tests.conftest import REPO
+
+    result = run_cli("info", REPO / "models" / "machined_bracket.obj", "--json")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    assert info["sharp_edges"] == 56
+    assert info["sharp_features"] == {"corners": 10, "darts": 10, "sector_vertices": 15}
