@@ -53,7 +53,12 @@ Choices where the seeds are silent, written once:
 * Corner sector angle ``alpha`` (BLZ: "the angle of the sector"): the sum of the corner angles
   ``pi (k - 2) / k`` of the sector's k-gons, a topological angle, so that ``S`` does not depend
   on positions; a quad sector of m faces gets ``theta = pi/2``, the standard rule (a cube's
-  corner angles are exactly that).  All corners are convex (no concave tags in DESIGN 1).
+  corner angles are exactly that).  Convex and concave sectors (seed 000 section 2: "convex
+  unless tagged") need no tag here: BLZ's concave rule ``theta = (2 pi - alpha)/m`` takes
+  alpha as the convex angle between the sector's two crease edges, which for a quad sector
+  spanning m pi/2 (m >= 3, e.g. the three faces of an L's inner corner) is 2 pi - m pi/2, and
+  gives theta = pi/2 again: with topological angles the two rules coincide.  Only geometric
+  angles would tell them apart, and those would make S depend on positions.
 * An untagged edge with *both* ends tagged: the mean of the two BLZ rules.
 * An endpoint's "interval beyond" (``d_{i-1}`` of the curve rules): through a regular smooth
   vertex (interior, valence 4, quads) the straight continuation's interval; along a crease
