@@ -1394,3 +1394,33 @@ def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
     rng = np.random.default_rng(0)  # the old S-side draw: the true ratio stays near n + 1
     true_ratio = [np.ptp(x) / x.min() + 1 for x in rng.uniform(1, 1000, (200, 5))]
     assert np.median(true_ratio) < 12
+
+
+def test_concave_corner_sector_takes_blz_concave_rule_without_a_tag():
+    """Seed 000 section 2 (BLZ): next to a corner, an untagged edge's point uses
+    gamma = 3/8 - cos(theta)/4 with theta = alpha/m (convex) or (2 pi - alpha)/m (concave),
+    alpha the angle between the sector's two crease edges.  The L's inner top corner is
+    concave: its top sector has m = 3 squares and alpha = pi/2 between the rim edges, so BLZ
+    gives theta = pi/2, gamma = 3/8 (the standard weights), while the convex reading would give
+    theta = pi/6, gamma = 0.158.  The seed rules' topological sector angle (pi/2 per quad,
+    patching.subdivision's docstring) reproduces the concave rule without any tag."""
+    from patching.primitives import polycube
+    from patching.topology import Topology
+
+    base = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1)
+    topo = Topology(base)
+    at = lambda p: int(np.flatnonzero((base.vertices == p).all(axis=1))[0])  # noqa: E731
+    v, e = at((1, 1, 1)), at((0, 1, 1))
+    rim = {tuple(sorted((at(a), at(b)))): np.inf for a, b in (((1, 1, 1), (2, 1, 1)), ((1, 1, 1), (1, 2, 1)))}
+    mesh = from_arrays(base.vertices, base.quads(), creases=rim, corners={v: np.inf})
+    s, _ = subdivision_operator(mesh, rules="seed")
+    edge = topo.edge_id(v, e)
+    row = s[mesh.n_faces + edge].toarray().ravel()
+    faces = [f for f in range(mesh.n_faces) if {v, e} <= set(mesh.face(f))]
+    others = {int(x) for f in faces for x in mesh.face(f)} - {v, e}
+    expected = np.zeros(mesh.n_vertices)
+    gamma = 3 / 8 - math.cos((2 * math.pi - math.pi / 2) / 3) / 4  # concave BLZ
+    expected[v], expected[e] = 3 / 4 - gamma, gamma
+    expected[list(others)] = 1 / 16
+    np.testing.assert_allclose(row, expected, atol=1e-15)
+    assert abs(gamma - (3 / 8 - math.cos(math.pi / 6) / 4)) > 0.2  # the convex reading differs
