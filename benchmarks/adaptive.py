@@ -26,7 +26,7 @@ def run_one(name: str) -> dict:
     import numpy as np
 
     import patching
-    from patching.adaptive import adaptive_operator
+    from patching.adaptive import adaptive_operator, junction_residuals
 
     mesh = patching.read_mesh(SHAPES / f"{name}.obj")
     start = time.perf_counter()
@@ -36,7 +36,11 @@ def run_one(name: str) -> dict:
     finite = all(np.isfinite(arr).all() for _, arr in coeffs.values())
     levels = ap.level
     transitions = int((levels[ap.junctions[:, 0].astype(int)] != levels[ap.junctions[:, 2].astype(int)]).sum())
+    gap, angle = junction_residuals(ap, mesh.vertices)
+    size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
     return {
+        "gap": gap / size,
+        "angle_deg": float(np.degrees(angle)),
         "shape": name,
         "faces": mesh.n_faces,
         "steps": ap.steps,
@@ -57,7 +61,7 @@ def main(argv: list[str]) -> None:
         print(json.dumps(run_one(argv[1])))
         return
     names = argv or DEFAULT
-    print(f"{'shape':24} {'N':>2} {'faces':>6} {'global':>9} {'patches':>8} {'window':>7} {'T-junc':>7} {'s':>7} {'MB':>7}  per level")
+    print(f"{'shape':24} {'N':>2} {'faces':>6} {'global':>9} {'patches':>8} {'window':>7} {'T-junc':>7} {'s':>7} {'MB':>7} {'gap/size':>9} {'deg':>9}  per level")
     for name in names:
         out = subprocess.run([sys.executable, __file__, "--one", name], capture_output=True, text=True)
         if out.returncode:
@@ -66,7 +70,7 @@ def main(argv: list[str]) -> None:
         r = json.loads(out.stdout)
         print(
             f"{r['shape']:24} {r['steps']:>2} {r['faces']:>6} {r['global_faces']:>9} {r['patches']:>8} "
-            f"{r['largest_window']:>7} {r['transitions']:>7} {r['seconds']:>7} {r['peak_mb']:>7}  {r['per_level']}"
+            f"{r['largest_window']:>7} {r['transitions']:>7} {r['seconds']:>7} {r['peak_mb']:>7} {r['gap']:>9.1e} {r['angle_deg']:>9.1e}  {r['per_level']}"
         )
 
 

@@ -456,3 +456,35 @@ def child_parameters(corner: int, s: np.ndarray, t: np.ndarray) -> tuple[np.ndar
     e_prev = 0.5 * (CORNER_PARAMETERS[corner] + CORNER_PARAMETERS[(corner - 1) % 4])
     p = c[None, :] + np.asarray(s)[:, None] * (e_next - c)[None, :] + np.asarray(t)[:, None] * (e_prev - c)[None, :]
     return p[:, 0], p[:, 1]
+
+
+def junction_residuals(patches: AdaptivePatches, points: np.ndarray, samples: int = 9) -> tuple[float, float]:
+    """Largest gap (absolute) and normal angle (radians) between the two sides of every
+    junction whose patches differ in level, at ``samples`` points along each fine side."""
+    from .evaluation import evaluate_nets
+
+    nets = {}
+    for d, (ids, arr) in patches.nets(points).items():
+        nets[d] = (ids, arr)
+    where = {}
+    for d, (ids, _) in nets.items():
+        for k, p in enumerate(ids.tolist()):
+            where[p] = (d, k)
+    rows = patches.junctions[patches.level[patches.junctions[:, 0].astype(int)] != patches.level[patches.junctions[:, 2].astype(int)]]
+    w = np.linspace(0.0, 1.0, samples)
+    gap, angle = 0.0, 0.0
+
+    def side(p, k, u):
+        d, i = where[int(p)]
+        c0, c1 = CORNER_PARAMETERS[int(k)], CORNER_PARAMETERS[(int(k) + 1) % 4]
+        st = c0[None] + u[:, None] * (c1 - c0)[None]
+        x, ds, dt = evaluate_nets(nets[d][1][i : i + 1], st[:, 0], st[:, 1], derivatives=True)
+        n = np.cross(ds[0], dt[0])
+        return x[0], n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+    for pc, kc, pf, kf, u0, u1 in rows:
+        xa, na = side(pc, kc, u0 + w * (u1 - u0))
+        xb, nb = side(pf, kf, w[::-1])
+        gap = max(gap, float(np.linalg.norm(xa - xb, axis=1).max()))
+        angle = max(angle, float(np.arctan2(np.linalg.norm(np.cross(na, nb), axis=1), np.sum(na * nb, axis=1)).max()))
+    return gap, angle
