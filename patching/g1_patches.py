@@ -50,7 +50,7 @@ from .g1_constraints import a_slot, b_slot, r_slot, spoke_equations
 from .surface import CORNER_PARAMETERS
 from .topology import Topology
 
-__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "mix_rows", "blue_weights"]
+__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights"]
 
 QUINTIC = 5
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
@@ -235,73 +235,48 @@ class RowMixer:
         weights = np.broadcast_to(np.asarray(weights, dtype=np.float64), (e, t, s))
         self.blocks.append((targets, sources, weights))
 
-    def rules(self, version: np.ndarray, n_columns: int) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
-        """The step as (targets (T,), W (R, n_columns), rule (T,)): target t takes row rule[t]
-        of W, whose entries are weights of the step's sources read through ``version`` (the
-        current row, among n_columns, of every row of the row space).
-
-        Rules that are the same for several targets of one block (red's P00 in every patch
-        around the EP, a spoke point in both patches) are kept once.  A target set twice sums
-        its rules."""
-        targets_out, rows_out, data, indices, lengths = [], [], [], [], []
-        n_rules = 0
-        for t, src, w in self.blocks:
-            # one rule per distinct (E,) column of weights: the sources are the block's own
-            canon = {}
-            first = np.empty(t.shape[1], dtype=np.int64)
-            for k in range(t.shape[1]):
-                column = w[0, k] if w.strides[0] == 0 else w[:, k]  # one rule for all E, or E rules
-                first[k] = canon.setdefault(np.ascontiguousarray(column).tobytes(), k)
-            keep = np.flatnonzero(first == np.arange(t.shape[1]))
-            slot = np.full(t.shape[1], -1, dtype=np.int64)
-            slot[keep] = np.arange(keep.size)
-            e = t.shape[0]
-            rule_id = n_rules + np.arange(e)[:, None] * keep.size + slot[first][None, :]  # (E, T)
-            targets_out.append(t.ravel())
-            rows_out.append(rule_id.ravel())
-            ws = w[:, keep]  # (E, K, S)
-            data.append(ws.ravel())
-            indices.append(np.broadcast_to(version[src][:, None, :], ws.shape).ravel())
-            lengths.append(np.full(e * keep.size, src.shape[1], dtype=np.int64))
-            n_rules += e * keep.size
-        targets = np.concatenate(targets_out)
-        rows = np.concatenate(rows_out)
-        data, indices = np.concatenate(data), np.concatenate(indices)
-        nonzero = data != 0.0  # zero weights (most of blue's 36 per rule) read nothing
-        counts = np.bincount(np.repeat(np.arange(n_rules), np.concatenate(lengths))[nonzero], minlength=n_rules)
-        indptr = np.zeros(n_rules + 1, dtype=np.int64)
+    def matrix(self) -> sp.csr_matrix:
+        """The step as a CSR matrix, written straight into CSR arrays when every target row is
+        set once (each step's rule: one solve owns a row); a row set twice sums its rules.
+        Repeated sources in a row stay repeated entries (sparse products add them)."""
+        n = self.n_rows
+        if not self.blocks:
+            return sp.identity(n, format="csr")
+        targets = np.concatenate([t.ravel() for t, _, _ in self.blocks])
+        if targets.min() < 0 or np.bincount(targets, minlength=n).max() > 1:
+            return self._summed()
+        counts = np.ones(n, dtype=np.int64)
+        for t, src, _ in self.blocks:
+            counts[t] = src.shape[1]
+        indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(counts, out=indptr[1:])
-        w = sp.csr_matrix((data[nonzero], indices[nonzero], indptr), shape=(n_rules, n_columns))
-        count = np.bincount(targets, minlength=self.n_rows)
-        if count.max() > 1:  # a target set twice: the sum of its rules, one row per target
-            uniq = np.flatnonzero(count)
-            inverse = np.searchsorted(uniq, targets)
-            pick = sp.csr_matrix((np.ones(targets.size), (inverse, rows)), shape=(uniq.size, n_rules))
-            return uniq, (pick @ w).tocsr(), np.arange(uniq.size)
-        return targets, w, rows
+        indices = np.empty(indptr[-1], dtype=np.int64)
+        data = np.empty(indptr[-1], dtype=np.float64)
+        untouched = np.ones(n, dtype=bool)
+        untouched[targets] = False
+        ident = np.flatnonzero(untouched)
+        indices[indptr[ident]] = ident
+        data[indptr[ident]] = 1.0
+        for t, src, w in self.blocks:
+            pos = indptr[t][:, :, None] + np.arange(src.shape[1])  # (E, T, S)
+            indices[pos] = src[:, None, :]
+            data[pos] = w
+        return sp.csr_matrix((data, indices, indptr), shape=(n, n))
 
-
-def mix_rows(pool: sp.csr_matrix, steps, version: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
-    """Apply the row-mixing steps (callables filling a ``RowMixer``) in turn to the rows
-    pool[version] (version: (n_rows,) int64, default every row of the pool once).
-
-    Returns (pool, version): row r after the last step is pool[version[r]].  Only the rows a
-    step sets are computed (new rows appended to the pool, ``version`` pointing at them), each
-    distinct rule once; rows no step touches are never copied.  Same rows as composing the
-    steps as full matrices (identity outside their targets), up to the order of the sums."""
-    pool = pool.tocsr()
-    version = np.arange(pool.shape[0], dtype=np.int64) if version is None else version.copy()
-    n_rows = version.size
-    for step in steps:
-        mixer = RowMixer(n_rows)
-        step(mixer)
-        if not mixer.blocks:
-            continue
-        targets, w, rule = mixer.rules(version, pool.shape[0])
-        new = w @ pool
-        version[targets] = pool.shape[0] + rule
-        pool = sp.vstack([pool, new], format="csr")
-    return pool, version
+    def _summed(self) -> sp.csr_matrix:
+        """The general path: triplets, duplicates summed."""
+        t = np.concatenate([np.broadcast_to(t[:, :, None], w.shape).ravel() for t, _, w in self.blocks])
+        s = np.concatenate([np.broadcast_to(src[:, None, :], w.shape).ravel() for _, src, w in self.blocks])
+        w = np.concatenate([w.ravel() for _, _, w in self.blocks])
+        keep = np.ones(self.n_rows, dtype=bool)
+        keep[t] = False
+        ident = np.flatnonzero(keep)
+        rows = np.concatenate([t, ident])
+        cols = np.concatenate([s, ident])
+        vals = np.concatenate([w, np.ones(ident.size)])
+        out = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_rows, self.n_rows))
+        out.sum_duplicates()
+        return out
 
 
 def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

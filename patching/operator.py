@@ -19,10 +19,10 @@ import scipy.sparse as sp
 from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
-from .bezier_extraction import EDGE_POSITIONS, FACE_POINT_POSITION, VERTEX_POSITION, cubic_extraction, regular_face_points
+from .bezier_extraction import cubic_extraction, regular_face_points
 from .errors import KnotError, UnsupportedError
 from .features import Features, faces_without_surface, features, refuse_singular_rings
-from .g1_patches import G1Assembly, ep_groups, mix_rows
+from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
@@ -155,24 +155,17 @@ def build_operator(
     face_row = np.full(mesh.n_faces, -1, dtype=np.int64)
     face_row[quintic_order] = n_cubic_rows + 36 * np.arange(quintic_order.size)
     # Start: the cubic faces' extraction rows as they are, the irregular faces' degree-elevated
-    # (16 -> 36 rows), over the distinct extraction rows (a vertex point is a row of every face
-    # around the vertex, an edge point of both faces beside the edge: kept once here, so every
-    # rule below reads each of them once).
-    if quintic_order.size:
-        shared, distinct = _distinct_extraction_rows(topo)
-    else:  # bicubic faces read each extraction row once anyway
-        shared = distinct = np.arange(extraction.nets.shape[0])
-    mixing = _select_and_elevate(cubic_faces, quintic_order, distinct.size, shared)
-    version = np.arange(n_rows, dtype=np.int64)
-    blue = ()
+    # (16 -> 36 rows); columns are rows of the extraction (16 f + 4 i + j).
+    mixing = _select_and_elevate(cubic_faces, quintic_order, extraction.nets.shape[0])
     if quintic_faces.size:
         groups_ep = ep_groups(topo, eps, feats)
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
-        # Only the rows a step sets are computed, each distinct rule once (g1_patches.mix_rows).
-        # Red, black and green read few short rows over the extraction; blue's rows read 16 of
-        # the face's finished rows each and are cheapest over the control points (below).
-        mixing, version = mix_rows(mixing, (g1.red, g1.black, g1.green))
-        blue = (g1.blue,)
+        # Compose the row mixings first (few entries per row), then apply them once to the
+        # extraction rows, whose rows are long: far cheaper than four passes over long rows.
+        for solve in (g1.red, g1.black, g1.green, g1.blue):
+            mixer = RowMixer(n_rows)
+            solve(mixer)
+            mixing = mixer.matrix() @ mixing
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
@@ -180,71 +173,32 @@ def build_operator(
         anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
-    n_used = n_rows - 36 * patchless.size  # M's rows: those of faces with a patch
-    nets = extraction.nets[distinct] if quintic_order.size else extraction.nets  # (distinct rows, n + a)
+    if patchless.size:
+        mixing = mixing[: n_rows - 36 * patchless.size]
+    stacked = (mixing @ extraction.nets).tocsr()  # rows over [control points | anchors]
     if anchors == "faired" and n_anchor:
-        mixing, version = mix_rows(mixing, blue, version)
-        stacked = (mixing[version[:n_used]] @ nets).tocsr()  # rows over [control points | anchors]
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
         sets = [extraction.anchor_column[g.h[e]] - n for g in smooth_groups for e in range(len(g.vertices))]
         anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
-        fold = sp.vstack([sp.identity(n, format="csr"), anchor_rows], format="csr")
-        matrix = (stacked @ fold).tocsr()
-    else:
-        # Anchors folded into the (short) extraction rows by one product with [I; anchors],
-        # then one product of the live mixed rows with them (a row of several patches, such
-        # as a spoke point, once), blue over control points, and M's rows picked.
-        fold = sp.vstack([sp.identity(n, format="csr"), anchor_rows], format="csr")
-        if not blue:  # no irregular face: the rows are M's rows
-            matrix = (mixing @ (nets @ fold)).tocsr()
-        else:
-            live = np.zeros(mixing.shape[0], dtype=bool)
-            live[version] = True
-            position = np.cumsum(live) - 1
-            points = mixing[np.flatnonzero(live)] @ (nets @ fold).tocsr()
-            points, version = mix_rows(points, blue, position[version])
-            matrix = points[version[:n_used]]
+    # Anchors folded in by one product with [I; anchors] (cheaper than slicing the columns
+    # apart and adding two long matrices).
+    fold = sp.vstack([sp.identity(n, format="csr"), anchor_rows], format="csr")
+    matrix = (stacked @ fold).tocsr()
     matrix.eliminate_zeros()
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
     return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
 
 
-def _distinct_extraction_rows(topo: Topology) -> tuple[np.ndarray, np.ndarray]:
-    """(shared (16 f,), distinct (k,)): extraction row 16 f + 4 i + j is row distinct[shared[.]]
-    of the extraction.  Face points are their corner's, vertex points their vertex's, an edge
-    point near corner k+1 the twin's near its origin (``bezier_extraction``'s selection of the
-    16 rows of a face: FACE_POINT_POSITION, VERTEX_POSITION, EDGE_POSITIONS); on an open
-    boundary the face's own leg point."""
-    n_he = topo.origin.size
-    base = topo.mesh.face_offsets[:-1]
-    key = np.zeros((base.size, 4, 4), dtype=np.int64)
-    for k in range(4):
-        hk = base + k
-        twin = topo.twin[hk]
-        key[:, FACE_POINT_POSITION[k][0], FACE_POINT_POSITION[k][1]] = hk
-        key[:, VERTEX_POSITION[k][0], VERTEX_POSITION[k][1]] = 2 * n_he + topo.origin[hk]
-        (i0, j0), (i1, j1) = EDGE_POSITIONS[k]
-        key[:, i0, j0] = n_he + hk
-        key[:, i1, j1] = np.where(twin >= 0, n_he + twin, 2 * n_he + topo.n_vertices + hk)
-    key = key.ravel()
-    first = np.full(3 * n_he + topo.n_vertices, -1, dtype=np.int64)
-    first[key[::-1]] = np.arange(key.size - 1, -1, -1)  # the first row of every key
-    present = first >= 0
-    number = np.cumsum(present) - 1
-    return number[key], first[present]
-
-
-def _select_and_elevate(cubic_faces: np.ndarray, quintic_faces: np.ndarray, n_columns: int, shared: np.ndarray) -> sp.csr_matrix:
-    """(16 c + 36 q, n_columns) CSR over the n_columns distinct extraction rows (``shared``:
-    extraction row -> distinct row): row 16 k + r picks row r of cubic face k; the 36 rows of quintic face k are
-    its 16 rows degree-elevated to bi-quintic."""
+def _select_and_elevate(cubic_faces: np.ndarray, quintic_faces: np.ndarray, n_columns: int) -> sp.csr_matrix:
+    """(16 c + 36 q, n_columns) CSR over extraction rows: row 16 k + r picks row r of cubic
+    face k; the 36 rows of quintic face k are its 16 rows degree-elevated to bi-quintic."""
     elevate = sp.csr_matrix(elevation_matrix_2d(3, 5))
     per_face = elevate.nnz
     cubic_cols = (16 * cubic_faces[:, None] + np.arange(16)).ravel()
     quintic_cols = (16 * quintic_faces[:, None] + elevate.indices[None, :]).ravel()
-    indices = shared[np.concatenate([cubic_cols, quintic_cols])]
+    indices = np.concatenate([cubic_cols, quintic_cols])
     row_starts = cubic_cols.size + (per_face * np.arange(quintic_faces.size)[:, None] + elevate.indptr[None, :-1]).ravel()
     indptr = np.concatenate([np.arange(cubic_cols.size), row_starts, [indices.size]])
     data = np.concatenate([np.ones(cubic_cols.size), np.tile(elevate.data, quintic_faces.size)])
