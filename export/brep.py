@@ -12,7 +12,14 @@ Conventions (see ``patching.surface`` for the patch point ordering):
 - the pcurve of side k on its face is the straight line on the parameter square from
   corner k to corner k+1 (``CORNER_PARAMETERS``), or back when ``side_reversed``,
   parametrised by the same w, so pcurve(w) on the surface equals the 3D curve at w
-  whenever the two patches agree on the shared boundary row: SameParameter holds exactly.
+  whenever the two patches agree on the shared boundary row: SameParameter holds exactly;
+- split sides (T-junctions, ``PatchTopology.pieces``): a side made of pieces [u0, u1] has one
+  edge per piece, listed in order in the face's wire.  The edge's 3D curve is the row of the
+  side it covers whole (the fine patch's), and its pcurve on the split (coarse) side the
+  degree-1 segment from C_k + u0 (C_{k+1} - C_k) to C_k + u1 (C_{k+1} - C_k), w in [0, 1]
+  (swapped when the piece is reversed): the coarse patch on that segment is the de Casteljau
+  piece of its side row, which is the fine row when the patches agree, so SameParameter
+  still holds exactly.  T-vertices are the fine patches' corners.
 
 Side rows of a (d+1, d+1) net, in the side's direction (the module docstring of
 ``patching.surface`` draws the square)::
@@ -30,11 +37,11 @@ from OCP.BRep import BRep_Builder
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.Geom import Geom_BezierCurve, Geom_BezierSurface
-from OCP.Geom2d import Geom2d_Line
+from OCP.Geom2d import Geom2d_BezierCurve, Geom2d_Line
 from OCP.gp import gp_Dir2d, gp_Pnt, gp_Pnt2d
 from OCP.GProp import GProp_GProps
 from OCP.Precision import Precision
-from OCP.TColgp import TColgp_Array1OfPnt, TColgp_Array2OfPnt
+from OCP.TColgp import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
 from OCP.TopoDS import (
     TopoDS_Compound,
@@ -50,7 +57,7 @@ from OCP.TopoDS import (
 from patching.errors import MeshError
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face"]
+__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces"]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
 RELATIVE_TOLERANCE = 1e-7
@@ -113,22 +120,29 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
         shape = np.shape(getattr(topo, name))
         if shape != (p, 4):
             raise BrepError(f"PatchTopology.{name} has shape {shape}, expected ({p}, 4)")
-    for name, n in (("corner_vertex", topo.n_vertices), ("side_edge", topo.n_edges)):
-        ids = np.asarray(getattr(topo, name))
-        if ids.size and (ids.min() < 0 or ids.max() >= n):
-            raise BrepError(f"PatchTopology.{name} has ids outside 0..{n - 1}")
-    # Every side must join its edge's two vertices in the edge's direction.
-    start = np.where(topo.side_reversed, np.roll(topo.corner_vertex, -1, axis=1), topo.corner_vertex)
-    end = np.where(topo.side_reversed, topo.corner_vertex, np.roll(topo.corner_vertex, -1, axis=1))
+    ids = np.asarray(topo.corner_vertex)
+    if ids.size and (ids.min() < 0 or ids.max() >= topo.n_vertices):
+        raise BrepError(f"PatchTopology.corner_vertex has ids outside 0..{topo.n_vertices - 1}")
+    if topo.side_indptr is None:
+        ids = np.asarray(topo.side_edge)
+        if ids.size and (ids.min() < 0 or ids.max() >= topo.n_edges):
+            raise BrepError(f"PatchTopology.side_edge has ids outside 0..{topo.n_edges - 1}")
+    else:
+        _check_pieces(topo, p)
+    # Every piece must join its edge's two vertices in the edge's direction.
+    pieces = topo.pieces
+    start = np.where(pieces.reversed, pieces.vertex[:, 1], pieces.vertex[:, 0])
+    end = np.where(pieces.reversed, pieces.vertex[:, 0], pieces.vertex[:, 1])
     ends = np.full((topo.n_edges, 2), -1, dtype=np.int64)
-    ids, first = np.unique(np.asarray(topo.side_edge).ravel(), return_index=True)
-    ends[ids] = np.stack([start.ravel()[first], end.ravel()[first]], axis=1)  # as its first side
-    bad = np.nonzero((ends[topo.side_edge, 0] != start) | (ends[topo.side_edge, 1] != end))
-    if len(bad[0]):
-        row, side = int(bad[0][0]), int(bad[1][0])
+    ids, first = np.unique(pieces.edge, return_index=True)
+    ends[ids] = np.stack([start[first], end[first]], axis=1)  # as its first piece
+    bad = np.flatnonzero((ends[pieces.edge, 0] != start) | (ends[pieces.edge, 1] != end))
+    if len(bad):
+        i = int(bad[0])
+        row, side = divmod(int(pieces.side[i]), 4)
         raise BrepError(
-            f"patch {row} side {side} runs between vertices {start[row, side]}, {end[row, side]} "
-            f"but its edge {topo.side_edge[row, side]} between {ends[topo.side_edge[row, side]].tolist()}"
+            f"patch {row} side {side} runs between vertices {start[i]}, {end[i]} "
+            f"but its edge {pieces.edge[i]} between {ends[pieces.edge[i]].tolist()}"
         )
     for row, degree, face, net in patches:
         if degree < 1 or net.shape != (degree + 1, degree + 1, 3):
@@ -136,6 +150,48 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
         if not np.all(np.isfinite(net)):
             raise BrepError(f"patch {row} (face {face}): non-finite coefficients")
     return patches
+
+
+def _check_pieces(topo, p: int) -> None:
+    """The split-side arrays against ``PatchTopology``'s contract: CSR shape, pieces tiling
+    [0, 1] from corner k to corner k+1 through shared break vertices, side_edge in step."""
+    indptr = np.asarray(topo.side_indptr)
+    if indptr.shape != (4 * p + 1,) or indptr[0] != 0 or np.any(np.diff(indptr) < 1):
+        raise BrepError(f"PatchTopology.side_indptr must be ({4 * p + 1},), from 0, at least one piece a side")
+    pieces = topo.pieces
+    m = int(indptr[-1])
+    for name, shape in (("edge", (m,)), ("reversed", (m,)), ("range", (m, 2)), ("vertex", (m, 2))):
+        if getattr(pieces, name).shape != shape:
+            raise BrepError(f"PatchTopology.piece_{name} has shape {getattr(pieces, name).shape}, expected {shape}")
+    for name, ids, n in (("piece_edge", pieces.edge, topo.n_edges), ("piece_vertex", pieces.vertex, topo.n_vertices)):
+        if ids.size and (ids.min() < 0 or ids.max() >= n):
+            raise BrepError(f"PatchTopology.{name} has ids outside 0..{n - 1}")
+    first, last = indptr[:-1], indptr[1:] - 1
+    corner = np.asarray(topo.corner_vertex, dtype=np.int64)
+    u, v = pieces.range, pieces.vertex
+    inner = np.ones(m, dtype=bool)
+    inner[first] = False  # pieces that follow another one on their side
+    problems = [
+        (~((u[:, 0] < u[:, 1]) & (u[:, 0] >= 0.0) & (u[:, 1] <= 1.0)), "an empty or reversed range"),
+        (inner & (np.r_[0.0, u[:-1, 1]] != u[:, 0]), "a gap or overlap with the piece before it"),
+        (inner & (np.r_[-1, v[:-1, 1]] != v[:, 0]), "a start vertex other than the end of the piece before it"),
+    ]
+    for bad, what in problems:
+        if bad.any():
+            row, side = divmod(int(pieces.side[np.flatnonzero(bad)[0]]), 4)
+            raise BrepError(f"patch {row} side {side}: a piece with {what}")
+    ends = (
+        (u[first, 0] != 0.0) | (u[last, 1] != 1.0)
+        | (v[first, 0] != corner.ravel()) | (v[last, 1] != np.roll(corner, -1, axis=1).ravel())
+    )
+    one = (first == last) & pieces.whole[first]
+    side_edge = np.asarray(topo.side_edge).ravel()
+    side_reversed = np.asarray(topo.side_reversed).ravel()
+    mismatch = np.where(one, (side_edge != pieces.edge[first]) | (side_reversed != pieces.reversed[first]), side_edge != -1)
+    for bad, what in ((ends, "pieces that do not run from corner to corner"), (mismatch, "side_edge out of step with its pieces")):
+        if bad.any():
+            row, side = divmod(int(np.flatnonzero(bad)[0]), 4)
+            raise BrepError(f"patch {row} side {side}: {what}")
 
 
 def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
@@ -154,49 +210,48 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
         _refuse_degenerate_sides(surface, patches, tol)
     builder = BRep_Builder()
     corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
-    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
-    side_reversed = np.asarray(topo.side_reversed, dtype=bool)
+    pieces = topo.pieces
+    nets = [net for _row, _degree, _face, net in patches]
 
-    # Vertices: the corner coefficient of the first patch corner using each id.
+    # Vertices: the corner coefficient of the first patch corner using each id, then
+    # T-vertices that are no patch's corner on the side they split.
     vertices: list[TopoDS_Vertex | None] = [None] * topo.n_vertices
-    for row, _degree, _face, net in patches:
+
+    def make_vertex(vid: int, point) -> None:
+        v = TopoDS_Vertex()
+        builder.MakeVertex(v, gp_Pnt(*(float(c) for c in point)), tol)
+        vertices[vid] = v
+
+    for row, net in enumerate(nets):
         d = net.shape[0] - 1
         corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
         for c in range(4):
             vid = corner_vertex[row, c]
             if vertices[vid] is None:
-                v = TopoDS_Vertex()
-                x, y, z = corners[c]
-                builder.MakeVertex(v, gp_Pnt(float(x), float(y), float(z)), tol)
-                vertices[vid] = v
+                make_vertex(vid, corners[c])
+    for i in np.flatnonzero(np.array([vertices[v] is None for v in pieces.vertex[:, 0]], dtype=bool)).tolist():
+        row, k = divmod(int(pieces.side[i]), 4)
+        make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(_side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
 
-    # Edges: 3D curve on the first side's boundary row, between the shared vertices.
-    edges: list[TopoDS_Edge | None] = [None] * topo.n_edges
-    for row, _degree, face, net in patches:
-        for k in range(4):
-            eid = side_edge[row, k]
-            if edges[eid] is not None:
-                continue
-            # The contract makes the first side forward; follow side_reversed regardless.
-            rev = bool(side_reversed[row, k])
-            curve_row = _side_row(net, k)[::-1] if rev else _side_row(net, k)
-            e = TopoDS_Edge()
-            builder.MakeEdge(e, _bezier_curve(curve_row), tol)
-            v0 = vertices[corner_vertex[row, (k + 1) % 4 if rev else k]]
-            v1 = vertices[corner_vertex[row, k if rev else (k + 1) % 4]]
-            builder.Add(e, v0.Oriented(TopAbs_FORWARD))
-            builder.Add(e, v1.Oriented(TopAbs_REVERSED))
-            edges[eid] = e
-    if any(e is None for e in edges):
-        raise BrepError("PatchTopology.n_edges counts edges that no patch side uses")
+    # Edges: 3D curve from each edge's source piece (PatchTopology), between the shared vertices.
+    edges = _make_edges(builder, pieces, topo.n_edges, nets, vertices, tol)
 
-    # Faces: surface, pcurves (two on one face for a seam edge), wire of the 4 oriented edges.
+    # Faces: surface, pcurves (two on one face for a seam edge), wire of the oriented pieces.
     faces: list[TopoDS_Face] = []
-    for row, _degree, _face, net in patches:
+    for row, net in enumerate(nets):
         f = TopoDS_Face()
         builder.MakeFace(f, _bezier_surface(net), tol)
-        sides = [(row, k, _pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
-        bound_face(builder, f, sides, edges, side_edge, side_reversed, tol)
+        wire = []
+        for k in range(4):
+            for i in range(pieces.indptr[4 * row + k], pieces.indptr[4 * row + k + 1]):
+                rev = bool(pieces.reversed[i])
+                if pieces.whole[i]:
+                    curve = _pcurve(k, rev)
+                else:
+                    a, b = (_side_point(k, float(u)) for u in pieces.range[i, ::-1 if rev else 1])
+                    curve = _line(a, b)
+                wire.append((int(pieces.edge[i]), rev, curve))
+        bound_face_pieces(builder, f, wire, edges, tol)
         faces.append(f)
 
     volumes: list[float] = []
@@ -226,13 +281,85 @@ def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> Non
             )
 
 
+def _side_point(side: int, u: float) -> np.ndarray:
+    """(s, t) of parameter u along ``side`` of the parameter square: C_k + u (C_{k+1} - C_k)."""
+    a, b = CORNER_PARAMETERS[side], CORNER_PARAMETERS[(side + 1) % 4]
+    return a + u * (b - a)
+
+
+def _line(a, b) -> Geom2d_BezierCurve:
+    """Degree-1 pcurve from a to b with parameter w in [0, 1]."""
+    poles = TColgp_Array1OfPnt2d(1, 2)
+    poles.SetValue(1, gp_Pnt2d(float(a[0]), float(a[1])))
+    poles.SetValue(2, gp_Pnt2d(float(b[0]), float(b[1])))
+    return Geom2d_BezierCurve(poles)
+
+
+def _de_casteljau(row: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Bézier curve ``row`` (d+1, 3) split at u: poles of its pieces on [0, u] and [u, 1]
+    (The NURBS Book, eq. 5.5 / A5.6's triangle)."""
+    left, right = [row[0]], [row[-1]]
+    level = np.asarray(row, dtype=np.float64)
+    while len(level) > 1:
+        level = (1.0 - u) * level[:-1] + u * level[1:]
+        left.append(level[0])
+        right.append(level[-1])
+    return np.array(left), np.array(right[::-1])
+
+
+def _sub_row(row: np.ndarray, u0: float, u1: float) -> np.ndarray:
+    """Poles of the Bézier curve ``row`` restricted to [u0, u1], parameter rescaled to [0, 1]."""
+    if u1 < 1.0:
+        row = _de_casteljau(row, u1)[0]
+    if u0 > 0.0:
+        row = _de_casteljau(row, u0 / u1)[1]
+    return row
+
+
+def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol: float) -> list[TopoDS_Edge]:
+    """One ``TopoDS_Edge`` per edge id, made in order of first use: the 3D curve and
+    direction of its source piece (its first whole-side piece, else its first piece,
+    ``PatchTopology``), between the piece's vertices."""
+    m = pieces.edge.size
+    order = np.arange(m, dtype=np.int64)
+    first = np.full(n_edges, m, dtype=np.int64)
+    np.minimum.at(first, pieces.edge, order)
+    if np.any(first == m):
+        raise BrepError("PatchTopology.n_edges counts edges that no patch side uses")
+    source = np.full(n_edges, 2 * m, dtype=np.int64)
+    np.minimum.at(source, pieces.edge, np.where(pieces.whole, order, m + order))
+    source = np.where(source >= m, source - m, source)
+    edges: list[TopoDS_Edge | None] = [None] * n_edges
+    for eid in np.argsort(first, kind="stable").tolist():
+        i = int(source[eid])
+        row, k = divmod(int(pieces.side[i]), 4)
+        curve_row = _side_row(nets[row], k)
+        if not pieces.whole[i]:
+            curve_row = _sub_row(curve_row, float(pieces.range[i, 0]), float(pieces.range[i, 1]))
+        v0, v1 = (int(v) for v in pieces.vertex[i])
+        if pieces.reversed[i]:  # the contract makes the source piece forward; follow it regardless
+            curve_row, v0, v1 = curve_row[::-1], v1, v0
+        e = TopoDS_Edge()
+        builder.MakeEdge(e, _bezier_curve(curve_row), tol)
+        builder.Add(e, vertices[v0].Oriented(TopAbs_FORWARD))
+        builder.Add(e, vertices[v1].Oriented(TopAbs_REVERSED))
+        edges[eid] = e
+    return edges
+
+
 def bound_face(builder: BRep_Builder, face: TopoDS_Face, sides, edges, side_edge, side_reversed, tol: float) -> None:
     """Give ``face`` the pcurves of its sides, a list of (patch row, side, pcurve) in wire
     order (two pcurves on one edge that bounds the face twice: a seam), and its closed wire of
     shared edges oriented by ``side_reversed``."""
+    pieces = [(int(side_edge[r, k]), bool(side_reversed[r, k]), c) for r, k, c in sides]
+    bound_face_pieces(builder, face, pieces, edges, tol)
+
+
+def bound_face_pieces(builder: BRep_Builder, face: TopoDS_Face, pieces, edges, tol: float) -> None:
+    """``bound_face`` on a list of (edge id, reversed, pcurve) in wire order."""
     pcurves: dict[int, dict[bool, object]] = {}
-    for r, k, c in sides:
-        pcurves.setdefault(int(side_edge[r, k]), {})[bool(side_reversed[r, k])] = c
+    for eid, rev, c in pieces:
+        pcurves.setdefault(eid, {})[rev] = c
     for eid, by_orientation in pcurves.items():
         if len(by_orientation) == 2:  # seam: the edge bounds this face on two sides
             builder.UpdateEdge(edges[eid], by_orientation[False], by_orientation[True], face, tol)
@@ -241,9 +368,8 @@ def bound_face(builder: BRep_Builder, face: TopoDS_Face, sides, edges, side_edge
             builder.UpdateEdge(edges[eid], c, face, tol)
     wire = TopoDS_Wire()
     builder.MakeWire(wire)
-    for r, k, _ in sides:
-        e = edges[int(side_edge[r, k])]
-        builder.Add(wire, e.Oriented(TopAbs_REVERSED if side_reversed[r, k] else TopAbs_FORWARD))
+    for eid, rev, _ in pieces:
+        builder.Add(wire, edges[eid].Oriented(TopAbs_REVERSED if rev else TopAbs_FORWARD))
     wire.Closed(True)
     builder.Add(face, wire)
 
@@ -254,14 +380,15 @@ def patch_components(topo) -> tuple[np.ndarray, np.ndarray]:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
-    p = side_edge.shape[0]
-    rows = np.repeat(np.arange(p), 4)
-    graph = coo_matrix((np.ones(rows.size), (rows, p + side_edge.ravel())), shape=(p + topo.n_edges,) * 2)
+    pieces = topo.pieces
+    p = np.shape(topo.corner_vertex)[0]
+    rows = pieces.side // 4
+    graph = coo_matrix((np.ones(rows.size), (rows, p + pieces.edge)), shape=(p + topo.n_edges,) * 2)
     _, label = connected_components(graph, directed=False)
     _, label = np.unique(label[:p], return_inverse=True)
-    open_edge = topo.edge_use_count[side_edge] < 2  # (p, 4)
-    closed = np.bincount(label, weights=open_edge.any(axis=1), minlength=label.max() + 1 if p else 0) == 0
+    open_row = np.zeros(p, dtype=bool)
+    open_row[rows[topo.edge_use_count[pieces.edge] < 2]] = True
+    closed = np.bincount(label, weights=open_row, minlength=label.max() + 1 if p else 0) == 0
     return label.ravel(), closed
 
 

@@ -36,9 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from OCP.BRep import BRep_Builder
 from OCP.Geom import Geom_BSplineSurface
-from OCP.Geom2d import Geom2d_BezierCurve
-from OCP.gp import gp_Pnt, gp_Pnt2d
-from OCP.TColgp import TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
+from OCP.gp import gp_Pnt
+from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
 from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
@@ -46,7 +45,7 @@ from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 from patching.evaluation import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import BrepError, _bezier_curve, _bezier_surface, _pcurve, _side_row, assemble, bound_face, patch_components, shape_tolerance
+from .brep import BrepError, _bezier_curve, _bezier_surface, _line, _pcurve, _side_row, assemble, bound_face, patch_components, shape_tolerance
 
 __all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
@@ -90,7 +89,9 @@ def _neighbours(surface: BezierSurface) -> np.ndarray:
 def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
     """Rectangular blocks of at least 2 bicubic patches (module docstring, step 1).
 
-    spans: (p, 2) float64, the knot intervals of each patch along its s and t."""
+    spans: (p, 2) float64, the knot intervals of each patch along its s and t.
+    Raises UnsupportedError for a surface with split sides (T-junctions)."""
+    surface.topology.require_whole_sides("packing faces")
     p = surface.n_patches
     cubic = np.zeros(p, dtype=bool)
     offset = 0
@@ -208,14 +209,6 @@ def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
     return bspline, u, v
 
 
-def _line(a, b) -> Geom2d_BezierCurve:
-    """Degree-1 pcurve from a to b with parameter w in [0, 1]."""
-    poles = TColgp_Array1OfPnt2d(1, 2)
-    poles.SetValue(1, gp_Pnt2d(float(a[0]), float(a[1])))
-    poles.SetValue(2, gp_Pnt2d(float(b[0]), float(b[1])))
-    return Geom2d_BezierCurve(poles)
-
-
 @dataclass(frozen=True)
 class PackReport:
     """faces of the packed B-rep; packed_faces of them B-spline blocks covering packed_patches
@@ -233,8 +226,11 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     """The B-rep of ``surface`` with regular blocks packed (module docstring): a solid when
     closed, else a shell, checked by ``BRepCheck_Analyzer`` unless ``check`` is False.
 
-    spans: (p, 2) knot intervals of every patch along its s and t (``patch_spans``)."""
+    spans: (p, 2) knot intervals of every patch along its s and t (``patch_spans``).
+    Raises UnsupportedError for a surface with split sides (T-junctions): blocks are found
+    through one edge per side (``export.brep.to_shape`` builds those surfaces)."""
     topo = surface.topology
+    topo.require_whole_sides("packing faces")
     nets = _nets(surface)
     tol = shape_tolerance(surface)
     builder = BRep_Builder()

@@ -159,6 +159,7 @@ def sample_graph(operator: SurfaceOperator, rows: np.ndarray, samples: int = 17)
     if samples < 3:
         raise ValueError("need at least 3 samples per side")
     topo = operator.topology
+    topo.require_whole_sides("the sample graph")  # keys sides by side_edge
     rows = np.asarray(rows, dtype=np.int64)
     m, p = samples, rows.size
     inner = m - 2

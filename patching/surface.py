@@ -22,10 +22,11 @@ is the parameter corner ``CORNER_PARAMETERS[c]``; side ``k`` runs from corner ``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-__all__ = ["CORNER_PARAMETERS", "PatchGroup", "PatchTopology", "BezierSurface"]
+__all__ = ["CORNER_PARAMETERS", "PatchGroup", "PatchTopology", "SidePieces", "BezierSurface"]
 
 #: (s, t) of the patch corners 0..3, in the face's vertex order.
 CORNER_PARAMETERS = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -46,6 +47,39 @@ class PatchGroup:
 
 
 @dataclass(frozen=True)
+class SidePieces:
+    """The sides of all patches as runs of B-rep edges (``PatchTopology.pieces``).
+
+    Sides are numbered ``4 row + side``; side i is made of pieces
+    ``indptr[i] .. indptr[i+1] - 1``, in order along the side (corner k to corner k+1).
+
+    indptr: (4 p + 1,) int64.
+    edge: (m,) int64, the B-rep edge of each piece.
+    reversed: (m,) bool, True where the piece runs against its edge's own direction.
+    range: (m, 2) float64, [u0, u1] of the side that the piece covers, u in the side's own
+        direction (0 at corner k, 1 at corner k+1); the pieces of a side tile [0, 1].
+    vertex: (m, 2) int64, the vertex at u0 and at u1: the side's corner vertices at u = 0
+        and u = 1, T-vertices at the break points in between.
+    """
+
+    indptr: np.ndarray
+    edge: np.ndarray
+    reversed: np.ndarray
+    range: np.ndarray
+    vertex: np.ndarray
+
+    @property
+    def side(self) -> np.ndarray:
+        """(m,) int64, the side (4 row + side) of each piece."""
+        return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
+
+    @property
+    def whole(self) -> np.ndarray:
+        """(m,) bool, pieces that are their whole side ([u0, u1] = [0, 1])."""
+        return (self.range[:, 0] == 0.0) & (self.range[:, 1] == 1.0)
+
+
+@dataclass(frozen=True)
 class PatchTopology:
     """How patch corners and sides are shared, for a B-rep built with shared topology.
 
@@ -58,6 +92,23 @@ class PatchTopology:
         index) that uses it; its 3D curve is that side's boundary row of coefficients.
     Two patch sides that share an edge class run in opposite directions (consistently
     oriented mesh), and an edge used by one side only lies on the open boundary.
+
+    Split sides (T-junctions, where patches of different refinement levels meet): a side may
+    be a run of several edges.  Then the five ``side_indptr .. piece_vertex`` arrays are set
+    (all or none; ``SidePieces`` documents them, ``pieces`` returns them as one object):
+
+    side_indptr: (4 p + 1,) int64, CSR over the sides 4 row + side.
+    piece_edge: (m,) int64, piece_reversed: (m,) bool, as side_edge / side_reversed per piece.
+    piece_range: (m, 2) float64, [u0, u1] along the side (u: 0 at corner k, 1 at k+1).
+    piece_vertex: (m, 2) int64, vertex at u0 and u1; interior break points are T-vertices,
+        ordinary vertex ids (counted in n_vertices) that lie inside this side.
+    A side that is one whole edge has one piece [0, 1] and keeps side_edge / side_reversed;
+    a split side has side_edge = -1 and side_reversed = False, so code that knows only
+    side_edge must refuse such a topology (``require_whole_sides``).  Every piece of an edge
+    is the same curve: an edge's own direction and 3D curve are those of its first piece (in
+    piece order) that is a whole side, else of its first piece (the de Casteljau piece of
+    that side's row).  At a T-junction the whole side is the fine patch's side, the pieces
+    on the coarse side run the other way, so they are reversed.
     """
 
     corner_vertex: np.ndarray
@@ -65,11 +116,52 @@ class PatchTopology:
     side_reversed: np.ndarray
     n_vertices: int
     n_edges: int
+    side_indptr: np.ndarray | None = None
+    piece_edge: np.ndarray | None = None
+    piece_reversed: np.ndarray | None = None
+    piece_range: np.ndarray | None = None
+    piece_vertex: np.ndarray | None = None
+
+    @property
+    def has_split_sides(self) -> bool:
+        """True when the piece arrays are given and some side is made of several edges."""
+        return self.side_indptr is not None and bool(np.any(np.diff(self.side_indptr) != 1))
+
+    @cached_property
+    def pieces(self) -> SidePieces:
+        """Every side as pieces: the given piece arrays, or one whole piece per side."""
+        if self.side_indptr is not None:
+            return SidePieces(
+                np.asarray(self.side_indptr, dtype=np.int64),
+                np.asarray(self.piece_edge, dtype=np.int64),
+                np.asarray(self.piece_reversed, dtype=bool),
+                np.asarray(self.piece_range, dtype=np.float64).reshape(-1, 2),
+                np.asarray(self.piece_vertex, dtype=np.int64).reshape(-1, 2),
+            )
+        corner = np.asarray(self.corner_vertex, dtype=np.int64)
+        n = corner.size
+        return SidePieces(
+            np.arange(n + 1, dtype=np.int64),
+            np.asarray(self.side_edge, dtype=np.int64).ravel(),
+            np.asarray(self.side_reversed, dtype=bool).ravel(),
+            np.tile([0.0, 1.0], (n, 1)),
+            np.stack([corner, np.roll(corner, -1, axis=1)], axis=-1).reshape(n, 2),
+        )
+
+    def require_whole_sides(self, what: str) -> None:
+        """Raise UnsupportedError naming ``what`` when some side is split (T-junctions)."""
+        if self.has_split_sides:
+            from .errors import UnsupportedError
+
+            rows = np.flatnonzero(np.diff(self.side_indptr) != 1) // 4
+            raise UnsupportedError(
+                f"{what} needs one edge per patch side; this surface has T-junctions", f"patch {int(rows[0])}"
+            )
 
     @property
     def edge_use_count(self) -> np.ndarray:
-        """(n_edges,) int64, how many patch sides use each edge (2 inside, 1 on a boundary)."""
-        return np.bincount(self.side_edge.ravel(), minlength=self.n_edges)
+        """(n_edges,) int64, how many patch sides (pieces) use each edge (2 inside, 1 on a boundary)."""
+        return np.bincount(self.pieces.edge, minlength=self.n_edges)
 
     @property
     def is_closed(self) -> bool:
