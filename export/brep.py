@@ -229,7 +229,7 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
             vid = corner_vertex[row, c]
             if vertices[vid] is None:
                 make_vertex(vid, corners[c])
-    for i in np.flatnonzero(np.array([vertices[v] is None for v in pieces.vertex[:, 0]], dtype=bool)).tolist():
+    for i in [i for i, v in enumerate(pieces.vertex[:, 0].tolist()) if vertices[v] is None]:
         row, k = divmod(int(pieces.side[i]), 4)
         make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(_side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
 
@@ -238,19 +238,21 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
 
     # Faces: surface, pcurves (two on one face for a seam edge), wire of the oriented pieces.
     faces: list[TopoDS_Face] = []
+    indptr, edge_of, reversed_, whole, ranges = (
+        a.tolist() for a in (pieces.indptr, pieces.edge, pieces.reversed, pieces.whole, pieces.range)
+    )
     for row, net in enumerate(nets):
         f = TopoDS_Face()
         builder.MakeFace(f, _bezier_surface(net), tol)
         wire = []
         for k in range(4):
-            for i in range(pieces.indptr[4 * row + k], pieces.indptr[4 * row + k + 1]):
-                rev = bool(pieces.reversed[i])
-                if pieces.whole[i]:
-                    curve = _pcurve(k, rev)
+            for i in range(indptr[4 * row + k], indptr[4 * row + k + 1]):
+                if whole[i]:
+                    curve = _pcurve(k, reversed_[i])
                 else:
-                    a, b = (_side_point(k, float(u)) for u in pieces.range[i, ::-1 if rev else 1])
-                    curve = _line(a, b)
-                wire.append((int(pieces.edge[i]), rev, curve))
+                    u0, u1 = ranges[i][::-1] if reversed_[i] else ranges[i]
+                    curve = _line(_side_point(k, u0), _side_point(k, u1))
+                wire.append((edge_of[i], reversed_[i], curve))
         bound_face_pieces(builder, f, wire, edges, tol)
         faces.append(f)
 
@@ -330,14 +332,17 @@ def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol
     np.minimum.at(source, pieces.edge, np.where(pieces.whole, order, m + order))
     source = np.where(source >= m, source - m, source)
     edges: list[TopoDS_Edge | None] = [None] * n_edges
+    side, whole, ranges, vertex, reversed_ = (
+        a.tolist() for a in (pieces.side, pieces.whole, pieces.range, pieces.vertex, pieces.reversed)
+    )
     for eid in np.argsort(first, kind="stable").tolist():
         i = int(source[eid])
-        row, k = divmod(int(pieces.side[i]), 4)
+        row, k = divmod(side[i], 4)
         curve_row = _side_row(nets[row], k)
-        if not pieces.whole[i]:
-            curve_row = _sub_row(curve_row, float(pieces.range[i, 0]), float(pieces.range[i, 1]))
-        v0, v1 = (int(v) for v in pieces.vertex[i])
-        if pieces.reversed[i]:  # the contract makes the source piece forward; follow it regardless
+        if not whole[i]:
+            curve_row = _sub_row(curve_row, *ranges[i])
+        v0, v1 = vertex[i]
+        if reversed_[i]:  # the contract makes the source piece forward; follow it regardless
             curve_row, v0, v1 = curve_row[::-1], v1, v0
         e = TopoDS_Edge()
         builder.MakeEdge(e, _bezier_curve(curve_row), tol)

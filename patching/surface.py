@@ -68,12 +68,12 @@ class SidePieces:
     range: np.ndarray
     vertex: np.ndarray
 
-    @property
+    @cached_property
     def side(self) -> np.ndarray:
         """(m,) int64, the side (4 row + side) of each piece."""
         return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
 
-    @property
+    @cached_property
     def whole(self) -> np.ndarray:
         """(m,) bool, pieces that are their whole side ([u0, u1] = [0, 1])."""
         return (self.range[:, 0] == 0.0) & (self.range[:, 1] == 1.0)

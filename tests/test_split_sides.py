@@ -235,8 +235,7 @@ def test_to_shape_checks_the_pieces(split_ring):
 
 
 def t_edges(shape):
-    """Edges of ``shape`` with their faces, and the vertices used by exactly 3 edges
-    (T-vertices: 2 fine sides + 1 break in a coarse side... counted on the shape)."""
+    """(edge -> faces map, number of distinct edges at every vertex) of ``shape``."""
     edge_faces = TopTools_IndexedDataMapOfShapeListOfShape()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, edge_faces)
     vertex_edges = TopTools_IndexedDataMapOfShapeListOfShape()
