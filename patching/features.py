@@ -23,8 +23,9 @@ valence 2 gets the EP path too, its two patches meeting at flat (pi) corners.
 
 Sector angles (section 4.2 gives only the crease rule):
 * crease vertex: pi per sector (the paper), the open boundary included;
-* corner: pi / 2 per sector, Biermann-Levin-Zorin's convex corner (seed 000 section 2: convex
-  unless tagged), which is never pi, so the two crease legs fix the sector's tangent plane;
+* corner: the sector's topological angle, pi / 2 per quad as seed 000's corner rules read in
+  ``subdivision`` (a three-quad concave sector spans 3 pi / 2), but never a multiple of pi, so
+  that the two crease legs fix the sector's tangent plane (``g1_patches.corner_sector_angle``);
 * corner tag on a vertex without sharp edges, and a dart: one sector of 2 pi (2 pi / n per
   patch, a skewed fan at valence 4: ``g1_patches.FOUR_FAN``); the tagged vertex is
   interpolated.

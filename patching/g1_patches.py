@@ -142,8 +142,8 @@ FOUR_FAN.setflags(write=False)
 
 def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.ndarray:
     """(n,) angle of every patch of a ring with sharp spokes (``features``): each sector's sum
-    (pi at a crease vertex, pi / 2 at a corner; 2 pi when an interpolated vertex has no sharp
-    spoke) shared equally by its patches; NaN for a boundary ring's gap."""
+    (pi at a crease vertex, ``corner_sector_angle`` at a corner; 2 pi when an interpolated
+    vertex has no sharp spoke) shared equally by its patches; NaN for a boundary ring's gap."""
     n = sharp.size
     theta = np.full(n, np.nan)
     if not sharp.any() and n == 4:  # an interpolated smooth valence-4 vertex: a skewed fan
@@ -151,7 +151,6 @@ def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.
     if not sharp.any() or (not boundary and sharp.sum() == 1):  # no sector ends, or a dart
         theta[:] = 2 * np.pi / n
         return theta
-    total = CORNER_SECTOR if interpolated else CREASE_SECTOR
     start = int(np.flatnonzero(sharp)[0])
     sector: list[int] = []
     for step in range(1, n + 1):
@@ -159,9 +158,20 @@ def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.
         sector.append(patch)
         if sharp[(start + step) % n]:
             if not (boundary and sector == [n - 1]):
-                theta[sector] = total / len(sector)
+                theta[sector] = (corner_sector_angle(len(sector)) if interpolated else CREASE_SECTOR) / len(sector)
             sector = []
     return theta
+
+
+def corner_sector_angle(faces: int) -> float:
+    """The angle of a corner sector of ``faces`` quads: the topological angle faces * pi / 2
+    (seed 000's corner rules as ``subdivision`` reads them: a concave sector of three quads,
+    an L's inner corner, spans 3 pi / 2) where that is not a multiple of pi; pi / 2 for two
+    quads and 3 pi / 2 for four or more.  A multiple of pi would make the fan's two crease
+    spokes parallel, and G_0 would then need the pinned crease legs parallel too, which at a
+    corner they are not.  Measured: pi / 2 for a three-quad concave sector folds the patches
+    near the corner (a negative Jacobian on 1% of their area on models/machined_bracket.obj)."""
+    return CORNER_SECTOR if faces <= 2 else 3 * CORNER_SECTOR
 
 
 def ep_groups(topo: Topology, eps: np.ndarray, feats: Features | None = None) -> list[EPGroup]:

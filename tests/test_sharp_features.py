@@ -265,6 +265,14 @@ def test_shipped_machined_bracket():
     top = mesh.vertices[:, 2].max()
     on_top = [net for _, _, face, net in surface.patches() if (mesh.vertices[list(mesh.face(face)), 2] == top).all()]
     assert on_top and max(np.abs(net[..., 2] - top).max() for net in on_top) <= 1e-14
+    # and it does not fold: the Jacobian keeps its sign on every top patch, also at the concave
+    # corners, whose three-quad sectors span 3 pi / 2 (g1_patches.corner_sector_angle; pi / 2
+    # folded 1% of those patches)
+    from patching.evaluation import evaluate_nets
+
+    g = np.linspace(0, 1, 21)
+    _, ds, dt = evaluate_nets(np.array([net for net in on_top if net.shape[0] == 6]), np.repeat(g, 21), np.tile(g, 21), derivatives=True)
+    assert np.cross(ds, dt)[..., 2].min() > 0
     report = check_continuity(to_shape(surface))
     assert report.valid and report.n_solids == 1 and report.max_gap_relative <= 1e-9
 
