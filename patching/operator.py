@@ -102,11 +102,15 @@ def build_operator(
     topo = topology or Topology(mesh)
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
-    # faces take one step, which turns every polygon into quads (issue 4; both done globally
-    # for now: the cost of the pre-subdivided mesh).  M of the refined mesh times the steps' S
-    # acts on the original control points; regular quad regions keep their surface (a step
-    # there is knot insertion).
+    # faces take one step, which turns every polygon into quads (issue 4).  Done globally when
+    # the refined mesh is small (the cost of the pre-subdivided mesh), else adaptively
+    # (``adaptive``: refined only near the features, the same surface, patches of several
+    # levels meeting at T-junctions).  M of the refined mesh times the steps' S acts on the
+    # original control points; regular quad regions keep their surface (a step there is knot
+    # insertion).
     steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
+    if steps and (steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES):
+        return _adaptive_operator(mesh, angles, anchors)
     if steps:
         from .subdivision import subdivision_operator
 
@@ -220,30 +224,40 @@ def _sector_anchors(topo: Topology, feats: Features, groups, anchor_column: np.n
     return sp.csr_matrix((points.data, (rows, points.col)), shape=(n_anchors, n_points))
 
 
-#: Most subdivision steps (and faces after them) spent on semi-sharp features before patching.
+#: Most global subdivision steps (and faces after them) spent on semi-sharp features before
+#: patching; beyond them the refinement is adaptive.
 MAX_SEMI_SHARP_STEPS = 6
 MAX_REFINED_FACES = 2_000_000
 
 
 def _semi_sharp_steps(topo: Topology) -> int:
-    """ceil of the largest finite sharpness below 10 on edges and corners (0 if none); refuses
-    what would need more than MAX_SEMI_SHARP_STEPS steps or MAX_REFINED_FACES faces."""
+    """ceil of the largest finite sharpness below 10 on edges and corners (0 if none)."""
     mesh = topo.mesh
     values = np.concatenate([topo.edge_sharpness, np.array(list(mesh.corners.values()), dtype=np.float64)])
     semi = values[(values > 0) & (values < 10)]
-    if semi.size == 0:
-        return 0
-    steps = int(np.ceil(semi.max()))
-    faces = mesh.n_faces * 4**steps  # a first step makes n-gons into n quads: about the same
-    if steps > MAX_SEMI_SHARP_STEPS or faces > MAX_REFINED_FACES:
-        e = int(np.argmax(np.where(topo.edge_sharpness < 10, topo.edge_sharpness, 0)))
-        a, b = (int(x) for x in topo.edges[e])
-        raise UnsupportedError(
-            f"sharpness {semi.max():g} needs {steps} subdivision steps ({faces} faces) before patching; "
-            f"at most {MAX_SEMI_SHARP_STEPS} steps and {MAX_REFINED_FACES} faces are done",
-            mesh.where("crease", (a, b)),
-        )
-    return steps
+    return int(np.ceil(semi.max())) if semi.size else 0
+
+
+def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str) -> SurfaceOperator:
+    """M of the feature-adaptive refinement (``adaptive.adaptive_operator``): rows grouped by
+    degree, the patch topology with split sides at the T-junctions (``split_sides``).  A
+    patch's face id is its first descendant on the finest level (the ids a global refinement
+    of that many steps would give it)."""
+    from .adaptive import adaptive_operator
+    from .split_sides import adaptive_layout, split_side_topology
+
+    patches = adaptive_operator(mesh, angles=angles, anchors=anchors)
+    order, table = adaptive_layout(patches)
+    blocks, groups, offset = [], [], 0
+    for d in np.unique(patches.degree[order]).tolist():
+        ids = order[patches.degree[order] == d]
+        rows = (patches.row_offset[ids][:, None] + np.arange((d + 1) ** 2)[None, :]).ravel()
+        blocks.append(patches.matrix[rows])
+        faces = patches.face[ids] * 4 ** (patches.steps - patches.level[ids])
+        groups.append(OperatorGroup(int(d), faces.astype(np.int64), offset))
+        offset += rows.size
+    matrix = sp.vstack(blocks).tocsr()
+    return SurfaceOperator(matrix, tuple(groups), split_side_topology(order.size, table), mesh.name)
 
 
 def _refuse_torn_knots(topo: Topology, spans: np.ndarray) -> None:

@@ -31,7 +31,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .surface import BezierSurface, PatchGroup, PatchTopology
 
-__all__ = ["split_side_topology", "adaptive_surface"]
+__all__ = ["split_side_topology", "adaptive_surface", "adaptive_layout"]
 
 
 def _first_use_ids(labels: np.ndarray) -> np.ndarray:
@@ -143,6 +143,20 @@ def split_side_topology(n_patches: int, junctions: np.ndarray, corner_ids: np.nd
     )
 
 
+def adaptive_layout(patches) -> tuple[np.ndarray, np.ndarray]:
+    """(order, table): the adaptive patch ids in row order (grouped by degree, ascending, ids
+    ascending inside a degree, as ``AdaptivePatches.nets`` lists them) and the junction table
+    with its patch ids mapped to those rows."""
+    degree = np.asarray(patches.degree)
+    order = np.concatenate([np.flatnonzero(degree == d) for d in np.unique(degree)] or [np.zeros(0, dtype=np.int64)])
+    row = np.empty(patches.n_patches, dtype=np.int64)
+    row[order] = np.arange(order.size)
+    table = np.array(patches.junctions, dtype=np.float64).reshape(-1, 6)
+    table[:, 0] = row[table[:, 0].astype(np.int64)]
+    table[:, 2] = row[table[:, 2].astype(np.int64)]
+    return order, table
+
+
 def adaptive_surface(patches, points: np.ndarray, name: str = "adaptive", size: float | None = None) -> BezierSurface:
     """The ``BezierSurface`` of adaptive patches (``patching.adaptive.AdaptivePatches``) on
     control points (n0, 3): one group per degree, ``faces`` = adaptive patch ids, topology
@@ -150,16 +164,10 @@ def adaptive_surface(patches, points: np.ndarray, name: str = "adaptive", size: 
 
     size: the length tolerances are relative to (default: the control points' diagonal)."""
     points = np.asarray(points, dtype=np.float64)
-    groups, order = [], []
+    groups = []
     for degree, (ids, nets) in sorted(patches.nets(points).items()):
         groups.append(PatchGroup(int(degree), np.asarray(ids, dtype=np.int64), nets))
-        order.append(ids)
-    order = np.concatenate(order) if order else np.zeros(0, dtype=np.int64)
-    row = np.empty(patches.n_patches, dtype=np.int64)
-    row[order] = np.arange(order.size)
-    table = np.array(patches.junctions, dtype=np.float64).reshape(-1, 6)
-    table[:, 0] = row[table[:, 0].astype(np.int64)]
-    table[:, 2] = row[table[:, 2].astype(np.int64)]
+    order, table = adaptive_layout(patches)
     if size is None:
         size = float(np.linalg.norm(np.ptp(points, axis=0))) if points.size else 0.0
     return BezierSurface(tuple(groups), split_side_topology(order.size, table), name, size)

@@ -128,9 +128,11 @@ def test_check_refuses_an_obj(tmp_path, run_cli):
 
 def test_unsupported_features_are_refused_not_built_wrong(tmp_path, run_cli):
     mesh = tmp_path / "t.obj"
-    mesh.write_text(torus_obj(extra="t crease 2/1/0 0 1 9\n"))  # 9 global steps: too many
+    cube = "".join(f"v {x} {y} {z}\n" for x in (0, 1) for y in (0, 1) for z in (0, 1))
+    cube += "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n"
+    mesh.write_text(cube + "t interval 2/1/0 0 1 0\n")  # a zero interval on an EP's spoke
     out = tmp_path / "t.step"
-    _assert_refused(run_cli("build", mesh, "-o", out), "needs 9 subdivision steps", "t.obj:33")
+    _assert_refused(run_cli("build", mesh, "-o", out), "not supported yet", "t.obj:15")
     assert not out.exists()
 
 
