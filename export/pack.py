@@ -357,15 +357,13 @@ def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
     (``patching.operator.face_spans``: the intervals of the face's edges h0 and h1).  Wrong
     spans could not change the surface (a span of the triple-knot B-spline is its patch
     whatever its length), only keep knots from being removed."""
-    from patching.operator import face_spans
+    from patching.operator import face_spans, patched_mesh
     from patching.topology import Topology
 
-    if not mesh.is_quad_mesh:
-        # build_operator patches the once-subdivided mesh then (issue 4): its faces are those.
-        from patching.subdivision import subdivision_operator
-
-        _, mesh = subdivision_operator(mesh, rules="seed")
-    spans = face_spans(Topology(mesh))
+    surface.topology.require_whole_sides("--pack")
+    # build_operator patches the mesh after its global steps for semi-sharp tags and n-gons
+    # (issue 4): its faces are those.
+    spans = face_spans(Topology(patched_mesh(mesh)))
     faces = np.array([face for _, _, face, _ in surface.patches()], dtype=np.int64)
     if faces.size and faces.max() >= len(spans):
         raise ValueError("the surface's faces are not the mesh's: was it built from this mesh?")

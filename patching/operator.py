@@ -28,7 +28,7 @@ from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
-__all__ = ["SurfaceOperator", "build_operator", "build", "ANCHOR_RULES"]
+__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES"]
 
 #: Placements of the auxiliary control points (``build_operator(anchors=...)``).
 ANCHOR_RULES = ("eigen-polyhedron", "extraction", "faired")
@@ -236,6 +236,23 @@ def _semi_sharp_steps(topo: Topology) -> int:
     values = np.concatenate([topo.edge_sharpness, np.array(list(mesh.corners.values()), dtype=np.float64)])
     semi = values[(values > 0) & (values < 10)]
     return int(np.ceil(semi.max())) if semi.size else 0
+
+
+def patched_mesh(mesh: ControlMesh) -> ControlMesh:
+    """The all-quad mesh whose faces the patches of ``build_operator(mesh)`` cover: the mesh
+    itself, or after the global subdivision steps taken for semi-sharp tags and n-gons (its
+    positions those steps' refinement of the control points).  Refused (UnsupportedError)
+    where the refinement is adaptive: there patches of several levels cover the faces."""
+    steps = _semi_sharp_steps(Topology(mesh)) or (0 if mesh.is_quad_mesh else 1)
+    if steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES:
+        raise UnsupportedError(f"{mesh.name} is refined adaptively: its patches cover faces of several levels", mesh.name)
+    from .subdivision import subdivision_operator
+
+    points = mesh.vertices
+    for _ in range(steps):
+        step, mesh = subdivision_operator(mesh, rules="seed")
+        points = step @ points
+    return mesh.with_positions(points) if steps else mesh
 
 
 def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str) -> SurfaceOperator:

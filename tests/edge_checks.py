@@ -76,21 +76,6 @@ def edge_jumps(mesh: patching.ControlMesh, surface, samples: int = 7):
     return edges, gaps, angles, feats.sharp[edges]
 
 
-def patched_mesh(mesh: patching.ControlMesh) -> patching.ControlMesh:
-    """The all-quad mesh whose faces the patches cover: ``mesh`` itself, or after the
-    subdivision steps that ``build_operator`` takes for semi-sharp tags and non-quad faces
-    (its patches are the same as the original mesh's, M composed with the steps)."""
-    from patching.operator import _semi_sharp_steps
-    from patching.subdivision import subdivision_operator
-
-    steps = _semi_sharp_steps(Topology(mesh)) or (0 if mesh.is_quad_mesh else 1)
-    points = mesh.vertices
-    for _ in range(steps):
-        step, mesh = subdivision_operator(mesh, rules="seed")
-        points = step @ points
-    return mesh.with_positions(points) if steps else mesh
-
-
 def _patches(surface):
     for g in surface.groups:
         for face, net in zip(g.faces, g.coefficients):

@@ -396,3 +396,20 @@ def test_info_reports_what_the_sharp_features_become(run_cli):
     info = json.loads(result.stdout)
     assert info["sharp_edges"] == 56
     assert info["sharp_features"] == {"corners": 10, "darts": 10, "sector_vertices": 15}
+
+
+def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, run_cli):
+    """--pack reads the knot spans of the faces the patches cover: after the global steps of a
+    semi-sharp mesh those of the refined mesh (patching.operator.patched_mesh); an adaptively
+    refined surface (T-junctions) is refused in one line and nothing is written."""
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 2\n"))
+    out = tmp_path / "ring.step"
+    result = run_cli("build", mesh, "-o", out, "--pack", "-q")
+    assert result.returncode == 0, result.stderr
+    assert out.exists()
+    deep = tmp_path / "deep.obj"
+    deep.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 7\n"))  # 7 steps: adaptive
+    refused = tmp_path / "deep.step"
+    _assert_refused(run_cli("build", deep, "-o", refused, "--pack"), "--pack needs one edge per patch side")
+    assert not refused.exists()

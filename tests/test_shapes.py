@@ -12,7 +12,8 @@ import patching
 from patching.errors import NupatchError
 from patching.features import features
 from tests.conftest import shape_files
-from tests.edge_checks import brep_smooth_jump, crease_deviation, edge_jumps, patched_mesh
+from patching.operator import patched_mesh
+from tests.edge_checks import brep_smooth_jump, crease_deviation, edge_jumps
 from tests.test_g1_patches import with_random_intervals
 
 SHAPES = shape_files("catmark_")
