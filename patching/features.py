@@ -113,7 +113,7 @@ def features(topo: Topology) -> Features:
     # Sector sizes: around every vertex with sharp edges, walk the ring once per valence.
     needs = np.zeros(n, dtype=bool)
     candidates = np.flatnonzero((count > 0) | (corner & topo.vertex_is_used))
-    for ring, boundary in _rings(topo, candidates):
+    for ring, boundary in topo.fans(candidates):
         vs = topo.origin[ring[:, 0]]
         spoke_sharp = sharp[topo.edge_of[ring]]
         if boundary:  # the incoming boundary edge closes the fan: one more sharp spoke
@@ -129,21 +129,6 @@ def features(topo: Topology) -> Features:
     if topo.mesh.interpolate_boundary == 0:  # boundary vertices bound no surface (no_surface)
         needs &= ~topo.vertex_is_boundary
     return Features(sharp, count, corner, needs, dart)
-
-
-def _rings(topo: Topology, vertices: np.ndarray):
-    """Yield (ring (E, k) of outgoing half-edges in rotation order, boundary) per valence and
-    boundary flag; a boundary ring starts at the boundary edge and has valence - 1 spokes."""
-    boundary = topo.vertex_is_boundary[vertices]
-    faces = topo.valence[vertices] - boundary
-    for b in (False, True):
-        for k in np.unique(faces[boundary == b]).tolist():
-            vs = vertices[(boundary == b) & (faces == k)]
-            ring = np.empty((vs.size, k), dtype=np.int64)
-            ring[:, 0] = topo.outgoing[vs]
-            for i in range(1, k):
-                ring[:, i] = topo.rotate(ring[:, i - 1])
-            yield ring, b
 
 
 def _largest_sector(spoke_sharp: np.ndarray, boundary: bool) -> np.ndarray:

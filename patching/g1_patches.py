@@ -188,14 +188,11 @@ def ep_groups(topo: Topology, eps: np.ndarray, feats: Features | None = None) ->
     for b in (False, True):
         for sec in (False, True):
             sel = (boundary == b) & (sector == sec)
-            for n in np.unique(topo.valence[eps[sel]]).tolist():
-                vs = eps[sel & (topo.valence[eps] == n)]
-                h = np.empty((vs.size, n), dtype=np.int64)
-                h[:, 0] = topo.outgoing[vs]
-                for i in range(1, n - b):
-                    h[:, i] = topo.rotate(h[:, i - 1])
-                if b:  # the incoming boundary half-edge closes the fan
-                    h[:, n - 1] = topo.prev[h[:, n - 2]]
+            for ring, _ in topo.fans(eps[sel]):
+                vs = topo.origin[ring[:, 0]]
+                n = ring.shape[1] + b
+                # a boundary fan is closed by its incoming boundary half-edge, spoke n - 1
+                h = np.concatenate([ring, topo.prev[ring[:, -1:]]], axis=1) if b else ring
                 spoke_index[h[:, : n - b]] = np.arange(n - b)[None, :]
                 if not sec:
                     raw.append((n, vs, h, None, b, None))

@@ -149,6 +149,23 @@ class Topology:
         h = np.asarray(h)
         return np.where(h >= 0, self.twin[self.prev[np.maximum(h, 0)]], -1)
 
+    def fans(self, vertices: np.ndarray):
+        """Yield (ring, boundary) per group of ``vertices`` with the same number of faces and
+        boundary flag: ring (E, k) their outgoing half-edges in rotation order (one per face),
+        a boundary vertex's starting at its boundary edge (``outgoing``), so it has valence - 1
+        of them.  Vectorised over the vertices of a group."""
+        vertices = np.asarray(vertices, dtype=np.int64)
+        boundary = self.vertex_is_boundary[vertices]
+        faces = self.valence[vertices] - boundary
+        for b in (False, True):
+            for k in np.unique(faces[boundary == b]).tolist():
+                vs = vertices[(boundary == b) & (faces == k)]
+                ring = np.empty((vs.size, k), dtype=np.int64)
+                ring[:, 0] = self.outgoing[vs]
+                for i in range(1, k):
+                    ring[:, i] = self.rotate(ring[:, i - 1])
+                yield ring, b
+
     def one_ring(self, v: int) -> np.ndarray:
         """Outgoing half-edges of vertex v in rotation order (a small local problem)."""
         start = int(self.outgoing[v])
