@@ -7,7 +7,7 @@ eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([19], ``eigen_polyhedron`
 1. A first ring [V, E_0.., F_0..] from the control points with the extraction of [32]:
    F_i = bilinear(P_0, P_{E_i}, P_{F_i}, P_{E_{i+1}}) at (w_i, w_{i+1}),
    w_i = (d_{i-2} + d_{i+2}) / (d_{i-2} + d_{i+2} + 2 d_i + 2 a_i), a_i the interval of the
-   edge that continues spoke i beyond E_i (d_i where E_i is not a regular interior vertex);
+   edge that continues spoke i beyond E_i (``onward_interval``: its reading at an irregular E_i);
    E_i = (d_{i-1} F_i + d_{i+1} F_{i-1}) / (d_{i-1} + d_{i+1});  V by eq. (3).
 2. C = L^0 [V, E, F] (dominant left eigenvector of the local subdivision matrix N).
 3. Vbar = Q Phat, the projection of [E - V, F - V] on the lambda-eigenspace of Nhat.
@@ -44,7 +44,7 @@ import scipy.sparse as sp
 from .eigen_polyhedron import limit_point_weights, tangent_projector
 from .topology import Topology
 
-__all__ = ["RULES", "anchor_weights", "anchor_matrix", "vertex_point_weights"]
+__all__ = ["RULES", "anchor_weights", "anchor_matrix", "onward_interval", "vertex_point_weights"]
 
 
 def vertex_point_weights(d: np.ndarray) -> np.ndarray:
@@ -125,6 +125,27 @@ def anchor_weights(d, a, angles: str = "standard", rule: str = "eigen-polyhedron
     return _anchor_weights(tuple(float(x) for x in d), tuple(float(x) for x in a), angles, rule)
 
 
+def onward_interval(topo: Topology, h: np.ndarray) -> np.ndarray:
+    """a_i of section 3.5 step 1 for spokes h (P_0 -> E_i) whose far end E_i is an interior vertex.
+
+    The seed defines a_i as "the knot interval of the edge adjacent to the i-th spoke edge",
+    the edge that continues the spoke straight beyond E_i; that exists only where E_i has
+    valence 4 (Fig. 11 draws regular neighbours).  Reconstruction for an irregular E_i: the
+    spoke back from E_i to P_0 is spoke j of E_i, and w_i reads "the interval behind" P_0 as
+    (d_{i-2} + d_{i+2}) / 2; the same reading at E_i gives a_i = (d'_{j-2} + d'_{j+2}) / 2 over
+    E_i's own spokes.  At valence 4 both are the straight continuation (the seed's a_i); in
+    general it makes the rule symmetric along the edge: the first-ring face points of both
+    ends sit at w = B_0 / (B_0 + d_i + B_1) and w' = B_1 / (B_1 + d_i + B_0) of the edge, so
+    w + w' < 1 and they never cross.  The earlier reading a_i = d_i put them past each other
+    on short edges between two EPs (w = 0.55 at valence 3 with intervals 1.2 against 2.1 and
+    3.5), which folded the catmark cube's patches at interval ratio 3 (issue 6 note)."""
+    back = topo.twin[h]
+    ahead = topo.rotate(topo.rotate(back))
+    behind = topo.next[topo.twin[topo.next[topo.twin[back]]]]
+    iv = topo.halfedge_interval
+    return 0.5 * (iv[ahead] + iv[behind])
+
+
 def anchor_matrix(
     topo: Topology, groups, anchor_column: np.ndarray, n_points: int, angles: str = "standard", rule: str = "eigen-polyhedron"
 ) -> sp.csr_matrix:
@@ -134,16 +155,12 @@ def anchor_matrix(
     (intervals, onward intervals) configuration."""
     n_anchors = int(np.count_nonzero(anchor_column >= 0))
     rows, cols, vals = [], [], []
-    iv = topo.halfedge_interval
-    regular = ~topo.vertex_is_boundary & (topo.valence == 4)
+    inner = ~topo.vertex_is_boundary & (topo.valence >= 3)
     for g in groups:
         h = g.h
         ends = topo.dest[h]
         far_corner = topo.dest[topo.next[h]]
-        # a_i: interval of the edge continuing spoke i straight beyond E_i (d_i where E_i is
-        # not a regular interior vertex).
-        onward = topo.next[np.maximum(topo.twin[topo.next[h]], 0)]
-        a = np.where(regular[ends], iv[onward], g.d)
+        a = np.where(inner[ends], onward_interval(topo, h), g.d)
         config = np.concatenate([g.d, a], axis=1)
         uniq, inverse = np.unique(config, axis=0, return_inverse=True)
         table = np.array([anchor_weights(row[: g.n], row[g.n :], angles, rule) for row in uniq])

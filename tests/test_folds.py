@@ -1,0 +1,84 @@
+"""Folds: patches that stay G1 with their neighbours but whose normal flips inside them
+(issue 6).  ``evaluation.normal_turning`` is the detector; the cases are coarse meshes whose
+EPs are all adjacent, where the anchors of two EPs meet on one short edge."""
+
+import numpy as np
+import pytest
+
+import patching
+from patching.auxiliary_points import onward_interval
+from patching.evaluation import normal_turning
+from patching.topology import Topology
+from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, with_random_intervals
+
+CUBE = patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
+#: no two neighbouring samples of a smooth patch turn by more than this (cos 60 degrees);
+#: the folds found before the fixes had cosines from -0.01 down to -1.
+TURNING = 0.5
+
+
+def test_detector_sees_a_fold_and_not_a_smooth_patch():
+    u = np.linspace(0.0, 1.0, 6)
+    flat = np.stack(list(np.meshgrid(u, u, indexing="ij")) + [np.zeros((6, 6))], axis=-1)
+    folded = flat.copy()
+    folded[:, 3:, 1] = 1.0 - folded[:, 3:, 1]  # the net turns back over itself along t
+    group = patching.PatchGroup(degree=5, faces=np.array([0, 1]), coefficients=np.stack([flat, folded]))
+    surface = patching.BezierSurface((group,), None, "two", 1.0)
+    faces, worst = normal_turning(surface)
+    assert worst[list(faces).index(0)] > 0.999
+    assert worst[list(faces).index(1)] < -0.9
+
+
+def test_first_ring_points_of_adjacent_eps_never_cross():
+    """Section 3.5 step 1 at both ends of an edge between two EPs: w + w' < 1 (the reading of
+    a_i at an irregular E_i, ``onward_interval``).  The former reading a_i = d_i gives
+    w = 0.55 at each end of the cube's short edges."""
+    mesh = with_random_intervals(CUBE, 5.0, seed=0)
+    topo = Topology(mesh)
+    iv = topo.halfedge_interval
+    h = np.arange(topo.origin.size)
+    around = lambda x: 0.5 * (iv[topo.rotate(topo.rotate(x))] + iv[topo.next[topo.twin[topo.next[topo.twin[x]]]]])  # noqa: E731
+    behind = around(h)  # (d_{i-2} + d_{i+2}) / 2 at the near end
+    a = onward_interval(topo, h)
+    w = behind / (behind + iv + a)
+    w_far = w[topo.twin]
+    assert np.all(w + w_far < 1.0)
+    np.testing.assert_allclose(a, behind[topo.twin])  # the far end's own "behind" interval
+    assert (iv[h] / (iv[h] + 2 * behind)).min() < 0.5 < (behind / (behind + 2 * iv)).max()  # the old reading crossed
+
+
+@pytest.mark.parametrize("anchors", ["eigen-polyhedron", "extraction", "faired"])
+@pytest.mark.parametrize("angles", ["optimized", "uniform"])
+def test_cube_with_random_intervals_does_not_fold(anchors, angles):
+    """Every vertex of the cube is a valence-3 EP.  With strip intervals drawn from [1, 5],
+    6 of 20 draws folded with the default anchors (adjacent normals at cos -1) before the
+    a_i reading, and 7 of 20 with faired anchors before their damping."""
+    worst = []
+    for seed in range(20):
+        mesh = with_random_intervals(CUBE, 5.0, seed=seed)
+        _, turning = normal_turning(patching.build(mesh, angles=angles, anchors=anchors))
+        worst.append(turning.min())
+    assert min(worst) > TURNING, f"folded draws: {[k for k, w in enumerate(worst) if w <= TURNING]}"
+
+
+def test_fairing_never_raises_the_thin_plate_energy_of_the_defaults():
+    """The damped block-Jacobi step (anchor_fairing): on a mesh of coupled EPs the faired
+    surface is at least as fair as the default one, in the energy it minimises."""
+    from patching.anchor_fairing import thin_plate_matrices
+
+    def energy(surface):
+        total = 0.0
+        for g in surface.groups:
+            iss, ist, itt = thin_plate_matrices(g.degree)
+            nets = g.coefficients.reshape(len(g.faces), -1, 3)
+            spans = patching.operator.face_spans(Topology(mesh))[g.faces]
+            for net, (delta, eps) in zip(nets, spans):
+                q = eps / delta**3 * iss + 2.0 / (delta * eps) * ist + delta / eps**3 * itt
+                total += float(np.einsum("ic,ij,jc->", net, q, net))
+        return total
+
+    for seed in range(5):
+        mesh = with_random_intervals(CUBE, 5.0, seed=seed)
+        default = energy(patching.build(mesh))
+        faired = energy(patching.build(mesh, anchors="faired"))
+        assert faired <= default * (1 + 1e-12)
