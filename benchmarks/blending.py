@@ -2,7 +2,7 @@
 blending functions with a single local maximum, optimized angles against the uniform baseline
 of [32], over random knot intervals.  Also the paper's Fig. 12 configuration as pictures.
 
-    .venv/bin/python benchmarks/blending.py [--configs 200] [--samples 33] [--anchors]
+    .venv/bin/python benchmarks/blending.py [--configs 200] [--samples 33] [--anchors] [--interior]
                                             [--figures] [--seed 2024]
 
 Configurations: the planar disc ``tests.test_evaluation.ep_disc`` (one EP of valence n, three
@@ -15,7 +15,8 @@ their whole supports (patch grids joined through the patch topology; see
 ``patching.evaluation``).  The normal jump is measured on the same operator with random
 control-point heights (the operator does not see positions).  --anchors adds the anchor rules
 "extraction" and "faired" (thin-plate fairing) beside the default "eigen-polyhedron" (section
-3.5; issue 6 item 5).
+3.5; issue 6 item 5).  --interior adds seed 002's cubic-isocurve rule for the four inner
+coefficients of every quintic patch beside the default, which keeps the extraction's values.
 
 Columns: share of functions with one maximum (EP / edge neighbours / diagonal neighbours /
 all), share of configurations where all 2n + 1 have one, share of functions whose other maxima
@@ -60,9 +61,9 @@ def run_cell(n: int, ratio: float, configs: int, modes, samples: int, seed: int)
         edge, diag = neighbourhood(topo, 0)
         heights = lifted(mesh, seed=c)
         for mode in modes:
-            angles, anchors = mode
+            angles, anchors, interior = mode
             t0 = time.perf_counter()
-            op = patching.build_operator(mesh, topology=topo, angles=angles, anchors=anchors)
+            op = patching.build_operator(mesh, topology=topo, angles=angles, anchors=anchors, interior=interior)
             t1 = time.perf_counter()
             (q,) = ep_quality(op, heights, samples=samples, topology=Topology(heights))
             t2 = time.perf_counter()
@@ -82,7 +83,7 @@ def run_cell(n: int, ratio: float, configs: int, modes, samples: int, seed: int)
 
 
 def table(configs: int, samples: int, modes, seed: int) -> dict:
-    head = (f"{'n':>2} {'ratio':>5} {'angles':>9} {'anchors':>16} {'EP':>6} {'edge':>6} {'diag':>6} "
+    head = (f"{'n':>2} {'ratio':>5} {'angles':>9} {'anchors':>16} {'interior':>15} {'EP':>6} {'edge':>6} {'diag':>6} "
             f"{'all':>6} {'configs':>7} {'<1%':>6} {'2nd max':>7} {'prom':>6} {'jump deg':>9} {'s build':>8} {'s report':>8}")
     print(f"{configs} random configurations per row, {samples} x {samples} samples per patch")
     print(head)
@@ -95,7 +96,7 @@ def table(configs: int, samples: int, modes, seed: int) -> dict:
                 s = stats[mode]
                 all_ = s["ep"] + s["edge"] + s["diag"]
                 clean = 1 - len(s["bad"]) / configs
-                print(f"{n:>2} {ratio:>5.0f} {mode[0]:>9} {mode[1]:>16} {np.mean(s['ep']):>6.1%} "
+                print(f"{n:>2} {ratio:>5.0f} {mode[0]:>9} {mode[1]:>16} {mode[2]:>15} {np.mean(s['ep']):>6.1%} "
                       f"{np.mean(s['edge']):>6.1%} {np.mean(s['diag']):>6.1%} {np.mean(all_):>6.1%} "
                       f"{clean:>7.1%} {np.mean(s['visible']):>6.1%} {max(s['second']):>7.3f} {max(s['prominence']):>6.3f} {max(s['jump']):>9.1e} "
                       f"{np.mean(s['t_build']):>8.4f} {np.mean(s['t_report']):>8.4f}")
@@ -109,21 +110,24 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=33)
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--anchors", action="store_true", help="also the 'extraction' and 'faired' anchor rules")
+    ap.add_argument("--interior", action="store_true", help="also seed 002's cubic-isocurve rule for the inner coefficients")
     ap.add_argument("--figures", action="store_true", help="only the Fig. 12 pictures")
     ap.add_argument("--show-bad", type=int, default=3, help="list this many failing configurations per row")
     args = ap.parse_args()
     if args.figures:
         figure_12()
         return
-    modes = [("optimized", "eigen-polyhedron"), ("uniform", "eigen-polyhedron")]
+    modes = [("optimized", "eigen-polyhedron", "extraction"), ("uniform", "eigen-polyhedron", "extraction")]
     if args.anchors:
-        modes += [(angles, rule) for rule in ("extraction", "faired") for angles in ("optimized", "uniform")]
+        modes += [(angles, rule, "extraction") for rule in ("extraction", "faired") for angles in ("optimized", "uniform")]
+    if args.interior:
+        modes += [(angles, "eigen-polyhedron", "cubic-isocurves") for angles in ("optimized", "uniform")]
     worst = table(args.configs, args.samples, modes, args.seed)
     if args.show_bad:
         print("\nconfigurations with more than one maximum (config, spoke intervals d_i, {control point: (maxima, prominence)}):")
         for key, bad in worst.items():
             for item in bad[: args.show_bad]:
-                print(f"  n={key[0]} ratio={key[1]:g} {key[2][0]}/{key[2][1]}: {item}")
+                print(f"  n={key[0]} ratio={key[1]:g} {'/'.join(key[2])}: {item}")
 
 
 #: Fig. 12 of seed 002 (picture lost): a valence-5 EP, "knot intervals 8 on the red edges, 4 on
@@ -196,7 +200,6 @@ def figure(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import LightSource
 
     n = len(spokes)
     d = np.ones((n, 3))

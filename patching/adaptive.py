@@ -297,6 +297,7 @@ def adaptive_operator(
     angles: str = "optimized",
     anchors: str = "eigen-polyhedron",
     keep_levels: bool = False,
+    interior: str = "extraction",
 ):
     """The adaptive patches of ``mesh`` (module docstring): leaves refined near seeds only.
 
@@ -344,7 +345,7 @@ def adaptive_operator(
             chosen = _unpinch(topo, _grow(inc, leaves, PATCH_MARGIN))
             sub, fid, vid, _ = _submesh(lev.mesh, topo, chosen, clear_semi_sharp=True)
             n_patch_faces = sub.n_faces
-            op = build_operator(sub, angles=angles, anchors=anchors)
+            op = build_operator(sub, angles=angles, anchors=anchors, interior=interior)
             on_points = lev.rows[vid]
             for g in op.groups:
                 window_face = fid[g.faces]

@@ -12,7 +12,9 @@ sparse matrix T with new_rows = T @ old_rows (identity outside the rows it sets)
 2. black (per spoke with a regular far end): P^i[3,0] from the fifth difference (eq. 8, last
    row: P30 = P20 + P40/2 - P10/2 + P00/10 - P50/10).
 3. green (per spoke): A[k,1], B[1,k] for k = 2, 3, nearest to the extraction under G_2, G_3.
-4. blue (per irregular face): the four inner coefficients from f_1, f_2 (below).
+4. blue (per irregular face): the four inner coefficients from f_1, f_2 (below); only with
+   ``build_operator(interior="cubic-isocurves")``.  By default they keep the extraction's
+   values (see ``operator.build_operator``: the seed's rule leaves ripples).
 
 The local frame of an EP and the equations G_k are those of ``g1_constraints``.
 

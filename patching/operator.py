@@ -28,10 +28,12 @@ from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
-__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES"]
+__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES", "INTERIOR_RULES"]
 
 #: Placements of the auxiliary control points (``build_operator(anchors=...)``).
 ANCHOR_RULES = ("eigen-polyhedron", "extraction", "faired")
+#: Rules for the four inner ("blue") coefficients of a quintic patch (``build_operator(interior=...)``).
+INTERIOR_RULES = ("extraction", "cubic-isocurves")
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,7 @@ def build_operator(
     angles: str = "optimized",
     force_extraordinary: Sequence[int] = (),
     anchors: str = "eigen-polyhedron",
+    interior: str = "extraction",
 ) -> SurfaceOperator:
     """Build M for a closed polygon mesh: bicubic patches on regular faces, G1 bi-quintic
     patches on faces touching extraordinary points (seed 002, section 3); a mesh with
@@ -92,6 +95,16 @@ def build_operator(
     "default" (the heuristic angles) or "uniform" (2 pi / n, the baseline of [32]).
     anchors: placement of the auxiliary control points, "eigen-polyhedron" (section 3.5,
     default), "extraction" (``auxiliary_points``) or "faired" (``anchor_fairing``).
+    interior: the four inner coefficients P[2..3, 2..3] of every quintic patch, which no G1
+    condition reads.  "extraction" (default) keeps them at the degree-elevated extraction,
+    the nearest values to it, as the red and green steps choose theirs; "cubic-isocurves" is
+    seed 002's explicit rule (f_1, f_2: iso-curves as cubic as possible, ``g1_patches.blue``).
+    Deviation from the seed, measured (issue 6 note; tests/test_blending_quality.py): the
+    seed's rule carries the G1 corrections of rows 0-1 linearly into the interior, where they
+    meet the unchanged rows 4-5 and leave a ripple near the far side of the patch, a second
+    local maximum of about 1e-4 of the peak in 7 of 200 random valence-5 configurations at
+    interval ratio <= 5 (0 with "extraction"); the surfaces are not less fair for it (thin
+    plate energy 0.80 to 1.02 times the seed rule's on the OpenSubdiv shapes).
     force_extraordinary: interior valence-4 vertices to treat as EPs anyway (a check: with
     uniform intervals and anchors="extraction" the EP path reproduces the bicubic B-spline);
     ignored for meshes with non-quad faces, whose vertices are renumbered by the refinement.
@@ -99,6 +112,8 @@ def build_operator(
     """
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
+    if interior not in INTERIOR_RULES:
+        raise ValueError(f"interior must be one of {INTERIOR_RULES}, not {interior!r}")
     topo = topology or Topology(mesh)
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
@@ -110,7 +125,7 @@ def build_operator(
     # insertion).
     steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
     if steps and (steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES):
-        return _adaptive_operator(mesh, angles, anchors)
+        return _adaptive_operator(mesh, angles, anchors, interior)
     if steps:
         from .subdivision import subdivision_operator
 
@@ -119,7 +134,7 @@ def build_operator(
         for _ in range(steps):
             step, refined = subdivision_operator(refined, rules="seed")
             composed = (step @ composed).tocsr()
-        inner = build_operator(refined, angles=angles, anchors=anchors)
+        inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior)
         return SurfaceOperator((inner.matrix @ composed).tocsr(), inner.groups, inner.topology, mesh.name)
     feats = features(topo)
     spans = face_spans(topo)
@@ -166,7 +181,8 @@ def build_operator(
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
         # Compose the row mixings first (few entries per row), then apply them once to the
         # extraction rows, whose rows are long: far cheaper than four passes over long rows.
-        for solve in (g1.red, g1.black, g1.green, g1.blue):
+        steps = (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ())
+        for solve in steps:
             mixer = RowMixer(n_rows)
             solve(mixer)
             mixing = mixer.matrix() @ mixing
@@ -255,7 +271,7 @@ def patched_mesh(mesh: ControlMesh) -> ControlMesh:
     return mesh.with_positions(points) if steps else mesh
 
 
-def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str) -> SurfaceOperator:
+def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str, interior: str) -> SurfaceOperator:
     """M of the feature-adaptive refinement (``adaptive.adaptive_operator``): rows grouped by
     degree, the patch topology with split sides at the T-junctions (``split_sides``).  A
     patch's face id is its first descendant on the finest level (the ids a global refinement
@@ -263,7 +279,7 @@ def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str) -> SurfaceO
     from .adaptive import adaptive_operator
     from .split_sides import adaptive_layout, split_side_topology
 
-    patches = adaptive_operator(mesh, angles=angles, anchors=anchors)
+    patches = adaptive_operator(mesh, angles=angles, anchors=anchors, interior=interior)
     order, table = adaptive_layout(patches)
     blocks, groups, offset = [], [], 0
     for d in np.unique(patches.degree[order]).tolist():
@@ -324,6 +340,8 @@ def face_spans(topo: Topology) -> np.ndarray:
     return np.stack([topo.halfedge_interval[base], topo.halfedge_interval[base + 1]], axis=1)
 
 
-def build(mesh: ControlMesh, angles: str = "optimized", anchors: str = "eigen-polyhedron") -> BezierSurface:
+def build(
+    mesh: ControlMesh, angles: str = "optimized", anchors: str = "eigen-polyhedron", interior: str = "extraction"
+) -> BezierSurface:
     """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``."""
-    return build_operator(mesh, angles=angles, anchors=anchors).evaluate(mesh.vertices)
+    return build_operator(mesh, angles=angles, anchors=anchors, interior=interior).evaluate(mesh.vertices)
