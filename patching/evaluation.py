@@ -74,24 +74,29 @@ def sample_surface(surface: BezierSurface, samples: int = 9):
     return np.concatenate(faces), np.concatenate(points), np.concatenate(normals)
 
 
-def normal_turning(surface: BezierSurface, samples: int = 25) -> tuple[np.ndarray, np.ndarray]:
+def normal_turning(surface: BezierSurface, samples: int = 25, singular: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
     """Fold detector: per patch, the smallest cosine between the unit normals of neighbouring
     samples of a samples x samples grid (along both grid lines).
 
     A patch that folds over itself stays G1 with its neighbours but its normal flips inside it
-    (cosine near -1); a smooth patch sampled finely has cosines near 1.  A singular point (a
-    degenerate corner, where S_s x S_t = 0) also shows a flip at one sample, so a low value
-    there is a singularity, not a fold.  Returns (faces (p,), min cosine (p,))."""
+    (cosine near -1); a smooth patch sampled finely has cosines near 1.  Samples at a singular
+    point (a degenerate corner, where |S_s x S_t| is below ``singular`` times the patch's
+    largest) have no normal and are left out: the normal is undefined there, not flipped.
+    Returns (faces (p,), min cosine (p,)); 1 for a patch without two regular neighbours."""
     u = np.linspace(0.0, 1.0, samples)
     s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     faces, worst = [], []
     for g in surface.groups:
         _, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
         n = np.cross(ds, dt)
-        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+        size = np.linalg.norm(n, axis=-1, keepdims=True)
+        regular = (size > singular * size.max(axis=1, keepdims=True)).reshape(-1, samples, samples)
+        n /= np.maximum(size, 1e-300)
         n = n.reshape(-1, samples, samples, 3)
-        along_s = np.einsum("kabc,kabc->kab", n[:, 1:], n[:, :-1]).min(axis=(1, 2))
-        along_t = np.einsum("kabc,kabc->kab", n[:, :, 1:], n[:, :, :-1]).min(axis=(1, 2))
+        cos_s = np.einsum("kabc,kabc->kab", n[:, 1:], n[:, :-1])
+        cos_t = np.einsum("kabc,kabc->kab", n[:, :, 1:], n[:, :, :-1])
+        along_s = np.where(regular[:, 1:] & regular[:, :-1], cos_s, 1.0).min(axis=(1, 2))
+        along_t = np.where(regular[:, :, 1:] & regular[:, :, :-1], cos_t, 1.0).min(axis=(1, 2))
         faces.append(g.faces)
         worst.append(np.minimum(along_s, along_t))
     if not faces:

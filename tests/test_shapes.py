@@ -10,6 +10,7 @@ import pytest
 
 import patching
 from patching.errors import NupatchError
+from patching.evaluation import normal_turning
 from patching.features import features
 from tests.conftest import shape_files
 from patching.operator import patched_mesh
@@ -28,6 +29,12 @@ REFUSALS = {
 }
 #: Random strip intervals around a triangle or pentagon have no consistent split (issue note).
 RANDOM_REFUSAL = "unequal knot intervals"
+#: The one shape whose surface folds (a patch's normal turns back inside it; issue 6 note):
+#: the lefthanded plate's random intervals (ratio 4.4 across valence-3 and -5 EPs) run against
+#: its control net's spacing by about 9 to 1, and the G1 conditions, whose connecting
+#: functions see intervals only, then shear the patches beside those EPs over themselves.
+#: Held here so that a fix, or a new fold elsewhere, shows.
+FOLDS = {("catmark_lefthanded", "random")}
 
 
 @pytest.mark.skipif(not SHAPES, reason="../shared/opensubdiv-shapes is absent")
@@ -55,6 +62,8 @@ def test_shape_builds_or_is_refused_in_one_line(path, intervals):
             return
     report = check_continuity(shape)
     assert report.valid and report.max_gap_relative <= 1e-9
+    _, turning = normal_turning(surface, samples=17)
+    assert (turning.min() < 0.0) == ((path.stem, intervals) in FOLDS), f"smallest cosine {turning.min():.3f}"
     labels, closed = patch_components(surface.topology)
     assert report.n_shells == closed.size  # one shell (or solid) per connected piece
     assert report.n_solids == np.count_nonzero(closed)
