@@ -79,10 +79,11 @@ def normal_turning(surface: BezierSurface, samples: int = 25, singular: float = 
     samples of a samples x samples grid (along both grid lines).
 
     A patch that folds over itself stays G1 with its neighbours but its normal flips inside it
-    (cosine near -1); a smooth patch sampled finely has cosines near 1.  Samples at a singular
-    point (a degenerate corner, where |S_s x S_t| is below ``singular`` times the patch's
-    largest) have no normal and are left out: the normal is undefined there, not flipped.
-    Returns (faces (p,), min cosine (p,)); 1 for a patch without two regular neighbours."""
+    (cosine near -1); a smooth patch sampled finely has cosines near 1.  A patch corner where
+    |S_s x S_t| is below ``singular`` times the patch's largest (a degenerate corner, such as
+    interpolateboundary 2 makes) has no normal and is left out: the normal is undefined there,
+    not flipped.  Only corners: along a fold the Jacobian vanishes too, on a curve, and the
+    flip across it must be seen.  Returns (faces (p,), min cosine (p,))."""
     u = np.linspace(0.0, 1.0, samples)
     s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     faces, worst = [], []
@@ -91,6 +92,9 @@ def normal_turning(surface: BezierSurface, samples: int = 25, singular: float = 
         n = np.cross(ds, dt)
         size = np.linalg.norm(n, axis=-1, keepdims=True)
         regular = (size > singular * size.max(axis=1, keepdims=True)).reshape(-1, samples, samples)
+        corner = np.zeros((samples, samples), dtype=bool)
+        corner[[0, 0, -1, -1], [0, -1, 0, -1]] = True
+        regular |= ~corner  # only the four corners may be singular
         n /= np.maximum(size, 1e-300)
         n = n.reshape(-1, samples, samples, 3)
         cos_s = np.einsum("kabc,kabc->kab", n[:, 1:], n[:, :-1])
@@ -552,7 +556,8 @@ class EPQuality:
     that separates it from higher ground, ``prominences``) over the highest value (0 with one
     maximum), to tell a visible bump from a ripple or from two hills joined by a shallow
     saddle; ``seam_gap`` the largest disagreement between joined samples (round-off: the
-    sampled functions are continuous)."""
+    sampled functions are continuous); ``fold`` the smallest cosine between the normals of
+    neighbouring samples on the patches of its faces (``normal_turning``; below 0: a fold)."""
 
     vertex: int
     valence: int
@@ -561,6 +566,7 @@ class EPQuality:
     second_maximum: dict[int, float]
     prominence: dict[int, float]
     seam_gap: float
+    fold: float
 
 
 def neighbourhood(topology: Topology, vertex: int) -> tuple[np.ndarray, np.ndarray]:
@@ -596,6 +602,8 @@ def ep_quality(
     topo = topology or Topology(mesh)
     eps = topo.extraordinary if eps is None else np.atleast_1d(np.asarray(eps, dtype=np.int64))
     surface = operator.evaluate(mesh.vertices)
+    turning_faces, turning = normal_turning(surface, samples=samples)
+    turning_of = dict(zip(turning_faces.tolist(), turning.tolist()))
     report = []
     for v in eps.tolist():
         edge_nb, diagonal = neighbourhood(topo, v)
@@ -622,6 +630,7 @@ def ep_quality(
                 second_maximum=second,
                 prominence=prominence,
                 seam_gap=float(gap.max()),
+                fold=min((turning_of[f] for f in topo.face[topo.one_ring(v)].tolist() if f in turning_of), default=1.0),
             )
         )
     return report

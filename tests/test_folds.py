@@ -82,3 +82,25 @@ def test_fairing_never_raises_the_thin_plate_energy_of_the_defaults():
         default = energy(patching.build(mesh))
         faired = energy(patching.build(mesh, anchors="faired"))
         assert faired <= default * (1 + 1e-12)
+
+
+def test_ep_quality_reports_folds():
+    """``ep_quality``'s ``fold``: the smallest normal cosine on an EP's patches; the cube's EPs
+    are clean, and where the shape sweep's one known fold sits (test_shapes.FOLDS) an EP
+    reports it."""
+    from patching.evaluation import ep_quality
+    from tests.conftest import shape_files
+
+    mesh = with_random_intervals(CUBE, 5.0, seed=0)
+    assert min(q.fold for q in ep_quality(patching.build_operator(mesh), mesh, samples=9)) > TURNING
+    shapes = [p for p in shape_files() if p.stem == "catmark_lefthanded"]
+    if not shapes:
+        pytest.skip("../shared/opensubdiv-shapes is absent")
+    mesh = with_random_intervals(patching.read_mesh(shapes[0]), 5.0, seed=len(shapes[0].stem))
+    op = patching.build_operator(mesh)
+    faces, turning = normal_turning(op.evaluate(mesh.vertices), samples=17)
+    topo = Topology(mesh)
+    corners = np.unique(mesh.quads()[faces[turning < 0.0]])
+    folded_eps = np.intersect1d(corners, topo.extraordinary)
+    assert 0 < folded_eps.size < 0.1 * topo.extraordinary.size  # a few EPs, not the whole plate
+    assert min(q.fold for q in ep_quality(op, mesh, samples=17, eps=folded_eps, topology=topo)) < 0.0
