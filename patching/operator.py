@@ -1,7 +1,8 @@
 """The linear operator from control points to Bézier coefficients (DESIGN 3).
 
 ``SurfaceOperator.matrix`` is a scipy.sparse CSR matrix M with one column per control point and
-one row per Bézier coefficient: coefficients = M @ P.  It is built from topology, knot
+one row per Bézier coefficient: coefficients = M @ P (``parallel.product``: the same product,
+its row blocks on several cores).  It is built from topology, knot
 intervals and tags only, never from positions, so moving control points costs one sparse
 product.  Rows come in groups of one degree; inside a group, patch k of bi-degree d owns rows
 ``offset + k (d+1)^2 + i (d+1) + j`` for its coefficient net[i, j] (see ``surface``).
@@ -24,6 +25,7 @@ from .errors import KnotError, UnsupportedError
 from .features import Features, faces_without_surface, features, refuse_singular_rings
 from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
+from .parallel import product
 from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
@@ -60,7 +62,7 @@ class SurfaceOperator:
 
     def coefficients(self, points: np.ndarray) -> np.ndarray:
         """(rows, 3) Bézier coefficients for control points (n, 3): one sparse product."""
-        return self.matrix @ np.asarray(points, dtype=np.float64)
+        return product(self.matrix, np.asarray(points, dtype=np.float64))
 
     def evaluate(self, points: np.ndarray) -> BezierSurface:
         """The patches for control points (n, 3)."""
@@ -135,7 +137,7 @@ def build_operator(
             step, refined = subdivision_operator(refined, rules="seed")
             composed = (step @ composed).tocsr()
         inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior)
-        return SurfaceOperator((inner.matrix @ composed).tocsr(), inner.groups, inner.topology, mesh.name)
+        return SurfaceOperator(product(inner.matrix, composed), inner.groups, inner.topology, mesh.name)
     feats = features(topo)
     spans = face_spans(topo)
     _refuse_torn_knots(topo, spans)
@@ -185,7 +187,7 @@ def build_operator(
         for solve in steps:
             mixer = RowMixer(n_rows)
             solve(mixer)
-            mixing = mixer.matrix() @ mixing
+            mixing = product(mixer.matrix(), mixing)
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
@@ -195,7 +197,7 @@ def build_operator(
         anchor_rows = sp.csr_matrix((n_anchor, n))
     if patchless.size:
         mixing = mixing[: n_rows - 36 * patchless.size]
-    stacked = (mixing @ extraction.nets).tocsr()  # rows over [control points | anchors]
+    stacked = product(mixing, extraction.nets).tocsr()  # rows over [control points | anchors]
     if anchors == "faired" and n_anchor:
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
@@ -204,7 +206,7 @@ def build_operator(
     # Anchors folded in by one product with [I; anchors] (cheaper than slicing the columns
     # apart and adding two long matrices).
     fold = sp.vstack([sp.identity(n, format="csr"), anchor_rows], format="csr")
-    matrix = (stacked @ fold).tocsr()
+    matrix = product(stacked, fold).tocsr()
     matrix.eliminate_zeros()
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)

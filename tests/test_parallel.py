@@ -1,0 +1,53 @@
+"""Row-block parallel products (``patching.parallel``) are the plain products, bit for bit."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from patching import parallel
+
+
+def random_csr(rows: int, cols: int, per_row: int, seed: int, empty_rows: int = 0) -> sp.csr_matrix:
+    rng = np.random.default_rng(seed)
+    r = np.repeat(np.arange(rows), per_row)
+    c = rng.integers(0, cols, r.size)
+    a = sp.csr_matrix((rng.normal(size=r.size), (r, c)), shape=(rows, cols))
+    if empty_rows:
+        keep = np.ones(rows)
+        keep[rng.choice(rows, empty_rows, replace=False)] = 0.0
+        a = (sp.diags(keep) @ a).tocsr()
+        a.eliminate_zeros()
+    return a
+
+
+@pytest.fixture
+def split_everything(monkeypatch):
+    monkeypatch.setattr(parallel, "MIN_SPLIT_NNZ", 0)
+    monkeypatch.setattr(parallel, "_workers", lambda: 3)
+    monkeypatch.setattr(parallel, "_POOL", None)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sparse_times_sparse_is_the_plain_product(split_everything, seed):
+    a = random_csr(500, 300, 7, seed, empty_rows=40)
+    b = random_csr(300, 200, 5, seed + 10)
+    plain, split = (a @ b).tocsr(), parallel.product(a, b)
+    assert split.shape == plain.shape
+    for name in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(plain, name))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sparse_times_points_is_the_plain_product(split_everything, seed):
+    a = random_csr(700, 400, 9, seed, empty_rows=seed * 30)
+    points = np.random.default_rng(seed).normal(size=(400, 3))
+    np.testing.assert_array_equal(parallel.product(a, points), a @ points)
+
+
+def test_blocks_cover_the_rows_once_with_balanced_work():
+    a = random_csr(1000, 50, 4, 0)
+    ranges = parallel.row_blocks(a, 4)
+    assert ranges[0][0] == 0 and ranges[-1][1] == a.shape[0]
+    assert all(r1 == r0 for (_, r1), (r0, _) in zip(ranges[:-1], ranges[1:]))
+    work = [a.indptr[r1] - a.indptr[r0] for r0, r1 in ranges]
+    assert max(work) - min(work) <= 2 * 4
