@@ -197,20 +197,25 @@ def build_operator(
         anchor_rows = sp.csr_matrix((n_anchor, n))
     if patchless.size:
         mixing = mixing[: n_rows - 36 * patchless.size]
-    stacked = product(mixing, extraction.nets).tocsr()  # rows over [control points | anchors]
-    if anchors == "faired" and n_anchor:
+    # Anchors folded in by one product with [I; anchors] (cheaper than slicing the columns
+    # apart and adding two long matrices); each row block goes through both products at once.
+    if anchors != "faired" or not n_anchor:
+        matrix = product(mixing, extraction.nets, _with_anchors(anchor_rows), prune=True)
+    else:
+        stacked = product(mixing, extraction.nets).tocsr()  # rows over [control points | anchors]
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
         sets = [extraction.anchor_column[g.h[e]] - n for g in smooth_groups for e in range(len(g.vertices))]
         anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
-    # Anchors folded in by one product with [I; anchors] (cheaper than slicing the columns
-    # apart and adding two long matrices).
-    fold = sp.vstack([sp.identity(n, format="csr"), anchor_rows], format="csr")
-    matrix = product(stacked, fold).tocsr()
-    matrix.eliminate_zeros()
+        matrix = product(stacked, _with_anchors(anchor_rows), prune=True)
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)
     return SurfaceOperator(matrix, tuple(g for g in groups if len(g.faces)), ptopo, mesh.name)
+
+
+def _with_anchors(anchor_rows: sp.csr_matrix) -> sp.csr_matrix:
+    """[I; anchor rows]: columns [control points | anchors] -> control points."""
+    return sp.vstack([sp.identity(anchor_rows.shape[1], format="csr"), anchor_rows], format="csr")
 
 
 def _select_and_elevate(cubic_faces: np.ndarray, quintic_faces: np.ndarray, n_columns: int) -> sp.csr_matrix:

@@ -45,21 +45,30 @@ def _block(a: sp.csr_matrix, r0: int, r1: int) -> sp.csr_matrix:
     return sp.csr_matrix((a.data[lo:hi], a.indices[lo:hi], a.indptr[r0 : r1 + 1] - lo), shape=(r1 - r0, a.shape[1]), copy=False)
 
 
-def product(a: sp.csr_matrix, b):
-    """A @ B for CSR A and a CSR or dense B: the same matrix as the plain product, its row
-    blocks computed in parallel (module docstring)."""
+def product(a: sp.csr_matrix, *factors, prune: bool = False):
+    """A @ B_1 @ B_2 ... (left to right) for CSR A and CSR factors, the last one CSR or dense:
+    the same matrix as the plain products, each row block of A carried through the whole
+    chain in parallel (module docstring).  prune: drop explicit zeros (sparse result)."""
+    a = a.tocsr()
+
+    def chain(block):
+        for f in factors:
+            block = block @ f
+        if prune and sp.issparse(block):
+            block = block.tocsr()
+            block.eliminate_zeros()
+        return block
+
     workers = _workers()
     if workers == 1 or a.nnz < MIN_SPLIT_NNZ or a.shape[0] < 2 * workers:
-        return a @ b
-    a = a.tocsr()
-    ranges = row_blocks(a, workers)
-    parts = list(_pool().map(lambda r: _block(a, *r) @ b, ranges))
-    if not sp.issparse(b):
+        return chain(a)
+    parts = list(_pool().map(lambda r: chain(_block(a, *r)), row_blocks(a, workers)))
+    if not sp.issparse(parts[0]):
         return np.concatenate(parts, axis=0)
     parts = [p.tocsr() for p in parts]
     offsets = np.cumsum([0] + [p.nnz for p in parts])
     indptr = np.concatenate([parts[0].indptr[:1]] + [p.indptr[1:] + off for p, off in zip(parts, offsets[:-1])])
     return sp.csr_matrix(
         (np.concatenate([p.data for p in parts]), np.concatenate([p.indices for p in parts]), indptr),
-        shape=(a.shape[0], b.shape[1]),
+        shape=(a.shape[0], parts[0].shape[1]),
     )
