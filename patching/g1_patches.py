@@ -30,6 +30,18 @@ translation, so P00 is held at its extraction value; the solves use the null spa
 constraints and pseudo-inverses (G_0 has rank n - 2: the tangent plane), which tolerate the
 dependent rows.
 
+Spoke curves (ours; issue 6 note).  G_0 makes the spoke legs s_i - P00 the image of the
+characteristic fan, whose lengths follow the intervals (l_i about d_i), so where intervals
+run against the control net's spacing stage 1 shortens or stretches a leg s_i a lot while
+the far part of the spoke curve (P40, P50: the regular far end) stays.  Stage 2 then kept
+q_i = P^i[2,0] at the extraction and the black step's P30 = q + P40/2 - s/2 + ... took the
+whole mismatch: P30 overshot P40 and the patches beside the spoke folded (176 of the 15,360
+patches of benchmarks/build.py's half-EP mesh, intervals 1, 2 and 5).  Stage 2's target for
+q_i is therefore q_hat_i + (s_i - s_hat_i) / 2, the value that leaves P30 at the extraction's:
+the curve bends back smoothly and no patch there folds (min cosine between neighbouring
+normals 0.996).  At a spoke whose legs stage 1 does not move (uniform valence 4, any
+extraction that is already G1) nothing changes.
+
 Blue coefficients (printed formulas garbled; reconstructed): a quintic that is a
 degree-elevated cubic has q_2 = f_1(q_0, q_1, q_4, q_5) and q_3 = f_2(q_0, q_1, q_4, q_5) with
 f_1 = -3/10 a + b + 1/2 c - 1/5 d and f_2 = -1/5 a + 1/2 b + c - 3/10 d (checked by elevating
@@ -315,9 +327,10 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.
     Stage 1 (seed 002 section 3.4): P00 held, spoke points s and face points f nearest to the
     extraction's differences D under G_0; every input is then in the anchors' plane, so the
-    tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to stage 1 and the
-    extraction under G_1, with P00 and s kept (the paper takes q from G_1 alone, dividing by
-    4 b_i, which vanishes at valence 4 and in symmetric configurations).
+    tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to their targets
+    under G_1, with P00 and s kept: f from stage 1, q_hat + (s - s_hat) / 2 (module docstring,
+    "spoke curves").  The paper takes q from G_1 alone, dividing by 4 b_i, which vanishes at
+    valence 4 and in symmetric configurations.
 
     Sharp features (section 4.2): ``skip[i]`` marks a sharp spoke, which has no G1 constraint;
     ``pinned[i]`` one that also keeps its extraction values s_i, q_i (the crease curve; all
@@ -380,9 +393,16 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
         c = np.vstack(rows[1])
         y = np.array([f(i) for i in range(n) if i != gap] + [q(i) for i in range(n) if not pinned[i]])
         cy = c[:, y]
+        # The target of q_i is not its extraction value but q_hat_i + (s_i - s_hat_i) / 2: the
+        # black step's P30 = q + P40/2 - s/2 + P00/10 - P50/10 then starts from its extraction
+        # value (module docstring, "spoke curves").
+        target = stage1.copy()
+        for i in range(n):
+            if not pinned[i] and not skip[i]:
+                target[q(i)] += 0.5 * (stage1[s(i)] - np.eye(size)[s(i)])
         correction = np.zeros((size, size))
         correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
-        k = (np.eye(size) + correction) @ stage1
+        k = (np.eye(size) + correction) @ target
     k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
     return k

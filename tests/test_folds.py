@@ -104,3 +104,29 @@ def test_ep_quality_reports_folds():
     folded_eps = np.intersect1d(corners, topo.extraordinary)
     assert 0 < folded_eps.size < 0.1 * topo.extraordinary.size  # a few EPs, not the whole plate
     assert min(q.fold for q in ep_quality(op, mesh, samples=17, eps=folded_eps, topology=topo)) < 0.0
+
+
+def ep_rich_sphere(seed: int) -> patching.ControlMesh:
+    """benchmarks/build.py's "coarse" mesh in small: an icosphere's triangles split into quads
+    (half the vertices EPs of valence 3, 5, 6), strip intervals drawn from {1, 2, 5}."""
+    import trimesh
+
+    from patching.subdivision import subdivide
+
+    base = trimesh.creation.icosphere(subdivisions=2)
+    quad = subdivide(patching.from_arrays(base.vertices, base.faces), 1, rules="opensubdiv")
+    topo = Topology(quad)
+    values = np.random.default_rng(seed).choice([1.0, 2.0, 5.0], topo.n_strips)
+    first = np.unique(topo.edge_strip, return_index=True)[1]
+    intervals = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
+    return patching.from_arrays(quad.vertices, quad.quads(), intervals=intervals)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_spoke_curves_do_not_fold_where_intervals_run_against_the_net(seed):
+    """Red stage 2's target q_hat + (s - s_hat) / 2 (g1_patches, "spoke curves"): with the
+    extraction's q the black step's P30 overshot and 4 to 16 of these 960 patches folded
+    (cosines down to -0.999) in each of the four draws."""
+    mesh = ep_rich_sphere(seed)
+    _, turning = normal_turning(patching.build(mesh), samples=9)
+    assert turning.min() > TURNING
