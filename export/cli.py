@@ -120,9 +120,28 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
         shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
     else:
         shape = to_shape(surface)
+    _warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
     stage(f"{STAGES[3]} {job.fmt}")
     write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
     return mesh.n_faces, surface.n_patches
+
+
+def _warn_folds(surface: patching.BezierSurface) -> None:
+    """A NupatchWarning when a patch folds over itself (``evaluation.normal_turning`` below 0
+    on 9 x 9 samples): G1 holds, but the surface is not what a CAD user wants, and the cure
+    (finer control mesh near the EPs) is theirs to apply."""
+    from patching.evaluation import normal_turning
+
+    _, turning = normal_turning(surface, samples=9)
+    folded = int((turning < 0.0).sum())
+    if folded:
+        warnings.warn(
+            patching.NupatchWarning(
+                f"{folded} of {turning.size} patches fold over themselves: next to extraordinary points the "
+                "knot intervals run against the control net's spacing; one `nupatch subdivide` step of the mesh "
+                "usually removes such folds"
+            )
+        )
 
 
 def _build_worker(job: BuildJob) -> tuple[str, str, list[str]]:

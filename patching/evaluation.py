@@ -49,12 +49,21 @@ def evaluate_nets(nets: np.ndarray, s: np.ndarray, t: np.ndarray, derivatives: b
     With derivatives=True also returns S_s and S_t, each (k, m, c)."""
     d = nets.shape[1] - 1
     bs, bt = bernstein(d, s), bernstein(d, t)
-    points = np.einsum("mi,mj,kijc->kmc", bs, bt, nets)
+    points = _contract(bs, bt, nets)
     if not derivatives:
         return points
-    ds = d * np.einsum("mi,mj,kijc->kmc", bernstein(d - 1, s), bt, nets[:, 1:] - nets[:, :-1])
-    dt = d * np.einsum("mi,mj,kijc->kmc", bs, bernstein(d - 1, t), nets[:, :, 1:] - nets[:, :, :-1])
+    ds = d * _contract(bernstein(d - 1, s), bt, nets[:, 1:] - nets[:, :-1])
+    dt = d * _contract(bs, bernstein(d - 1, t), nets[:, :, 1:] - nets[:, :, :-1])
     return points, ds, dt
+
+
+def _contract(bs: np.ndarray, bt: np.ndarray, nets: np.ndarray) -> np.ndarray:
+    """sum_ij bs[m, i] bt[m, j] nets[k, i, j, c] -> (k, m, c), as one matrix product with the
+    (m, ij) tensor basis (BLAS; an unoptimised einsum over four indices is ~10x slower)."""
+    basis = (bs[:, :, None] * bt[:, None, :]).reshape(bs.shape[0], -1)
+    k, a, b, c = nets.shape
+    flat = np.ascontiguousarray(nets).reshape(k, a * b, c).transpose(1, 0, 2).reshape(a * b, k * c)
+    return (basis @ flat).reshape(bs.shape[0], k, c).transpose(1, 0, 2)
 
 
 def sample_surface(surface: BezierSurface, samples: int = 9):

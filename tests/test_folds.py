@@ -130,3 +130,23 @@ def test_spoke_curves_do_not_fold_where_intervals_run_against_the_net(seed):
     mesh = ep_rich_sphere(seed)
     _, turning = normal_turning(patching.build(mesh), samples=9)
     assert turning.min() > TURNING
+
+
+def test_nupatch_build_warns_of_folds_and_still_writes(run_cli, tmp_path):
+    """`nupatch build` names folds in one warning line (evaluation.normal_turning on 9 x 9
+    samples) and writes the file; a clean surface gets no such line."""
+    clean = tmp_path / "cube.obj"
+    patching.write_obj(with_random_intervals(CUBE, 5.0, seed=0), clean)
+    done = run_cli("build", clean, "-o", tmp_path / "cube.step", "-q")
+    assert done.returncode == 0 and "fold" not in done.stderr
+    from tests.conftest import shape_files
+
+    shapes = [p for p in shape_files() if p.stem == "catmark_lefthanded"]
+    if not shapes:
+        pytest.skip("../shared/opensubdiv-shapes is absent")
+    folded = tmp_path / "lefthanded.obj"
+    patching.write_obj(with_random_intervals(patching.read_mesh(shapes[0]), 5.0, seed=len(shapes[0].stem)), folded)
+    done = run_cli("build", folded, "-o", tmp_path / "lefthanded.step", "-q")
+    assert done.returncode == 0 and (tmp_path / "lefthanded.step").stat().st_size > 0
+    lines = [line for line in done.stderr.splitlines() if "fold over themselves" in line]
+    assert len(lines) == 1 and lines[0].startswith("nupatch: warning: ")
