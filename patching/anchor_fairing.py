@@ -106,15 +106,15 @@ def faired_anchors(
         q = energy[rows][:, rows].toarray()
         block = anchor_part[rows].tocsr()
         r_a = block[:, ids].toarray()  # (rows, n)
+        start = default[ids].toarray()  # A_v's default rows
         # coefficients with A_v removed and every other anchor at its default: (rows, n_points)
-        rest = (point_part[rows] + block @ default).toarray() - r_a @ default[ids].toarray()
+        rest = (point_part[rows] + block @ default).toarray() - r_a @ start
         h = r_a.T @ q @ r_a
         mu = MU * np.mean(np.diag(h))
-        rhs = -(r_a.T @ q @ rest) + mu * default[ids].toarray()
+        rhs = -(r_a.T @ q @ rest) + mu * start
         solved = np.linalg.solve(h + mu * np.eye(len(ids)), rhs)
         # damped block-Jacobi step (module docstring): a patch touched by k EPs' anchors
-        omega = 1.0 / sharing[touched].max()
-        solved = default[ids].toarray() + omega * (solved - default[ids].toarray())
+        solved = start + (solved - start) / sharing[touched].max()
         solved[np.abs(solved) < 1e-15] = 0.0
         out[ids] = solved
     return out.tocsr()

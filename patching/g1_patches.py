@@ -399,7 +399,8 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
         target = stage1.copy()
         for i in range(n):
             if not pinned[i] and not skip[i]:
-                target[q(i)] += 0.5 * (stage1[s(i)] - np.eye(size)[s(i)])
+                target[q(i)] += 0.5 * stage1[s(i)]
+                target[q(i), s(i)] -= 0.5
         correction = np.zeros((size, size))
         correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
         k = (np.eye(size) + correction) @ target

@@ -182,8 +182,8 @@ def build_operator(
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
         # Compose the row mixings first (few entries per row), then apply them once to the
         # extraction rows, whose rows are long: far cheaper than four passes over long rows.
-        steps = (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ())
-        for solve in steps:
+        g1_steps = (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ())
+        for solve in g1_steps:
             mixer = RowMixer(n_rows)
             solve(mixer)
             mixing = product(mixer.matrix(), mixing)

@@ -66,10 +66,4 @@ def product(a: sp.csr_matrix, *factors, prune: bool = False):
     parts = list(_pool().map(lambda r: chain(_block(a, *r)), row_blocks(a, workers)))
     if not sp.issparse(parts[0]):
         return np.concatenate(parts, axis=0)
-    parts = [p.tocsr() for p in parts]
-    offsets = np.cumsum([0] + [p.nnz for p in parts])
-    indptr = np.concatenate([parts[0].indptr[:1]] + [p.indptr[1:] + off for p, off in zip(parts, offsets[:-1])])
-    return sp.csr_matrix(
-        (np.concatenate([p.data for p in parts]), np.concatenate([p.indices for p in parts]), indptr),
-        shape=(a.shape[0], parts[0].shape[1]),
-    )
+    return sp.vstack(parts, format="csr")  # CSR blocks: their arrays concatenated, no re-sort
