@@ -141,7 +141,7 @@ def onward_interval(topo: Topology, h: np.ndarray) -> np.ndarray:
     3.5), which folded the catmark cube's patches at interval ratio 3 (issue 6 note)."""
     back = topo.twin[h]
     ahead = topo.rotate(topo.rotate(back))
-    behind = topo.next[topo.twin[topo.next[topo.twin[back]]]]
+    behind = topo.rotate_back(topo.rotate_back(back))
     iv = topo.halfedge_interval
     return 0.5 * (iv[ahead] + iv[behind])
 

@@ -66,24 +66,33 @@ def _contract(bs: np.ndarray, bt: np.ndarray, nets: np.ndarray) -> np.ndarray:
     return (basis @ flat).reshape(bs.shape[0], k, c).transpose(1, 0, 2)
 
 
+def _grid_normals(nets: np.ndarray, samples: int):
+    """Points, unit normals and |S_s x S_t| of (k, d+1, d+1, 3) nets on the samples x samples
+    grid (row-major, s first): (k, samples^2, 3), (k, samples^2, 3), (k, samples^2, 1)."""
+    u = np.linspace(0.0, 1.0, samples)
+    s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
+    p, ds, dt = evaluate_nets(nets, s, t, derivatives=True)
+    n = np.cross(ds, dt)
+    size = np.linalg.norm(n, axis=-1, keepdims=True)
+    return p, n / np.maximum(size, 1e-300), size
+
+
 def sample_surface(surface: BezierSurface, samples: int = 9):
     """Points and unit normals on a samples x samples grid of every patch.
 
     Returns (faces (p,), points (p, samples^2, 3), normals (p, samples^2, 3))."""
-    u = np.linspace(0.0, 1.0, samples)
-    s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     faces, points, normals = [], [], []
     for g in surface.groups:
-        p, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
-        n = np.cross(ds, dt)
-        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+        p, n, _ = _grid_normals(g.coefficients, samples)
         faces.append(g.faces)
         points.append(p)
         normals.append(n)
     return np.concatenate(faces), np.concatenate(points), np.concatenate(normals)
 
 
-def normal_turning(surface: BezierSurface, samples: int = 25, singular: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+def normal_turning(
+    surface: BezierSurface, samples: int = 25, singular: float = 1e-6, faces: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Fold detector: per patch, the smallest cosine between the unit normals of neighbouring
     samples of a samples x samples grid (along both grid lines).
 
@@ -92,29 +101,28 @@ def normal_turning(surface: BezierSurface, samples: int = 25, singular: float = 
     |S_s x S_t| is below ``singular`` times the patch's largest (a degenerate corner, such as
     interpolateboundary 2 makes) has no normal and is left out: the normal is undefined there,
     not flipped.  Only corners: along a fold the Jacobian vanishes too, on a curve, and the
-    flip across it must be seen.  Returns (faces (p,), min cosine (p,))."""
-    u = np.linspace(0.0, 1.0, samples)
-    s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
-    faces, worst = [], []
+    flip across it must be seen.  faces: only the patches of these faces (default: all).
+    Returns (faces (p,), min cosine (p,))."""
+    corner = np.zeros((samples, samples), dtype=bool)
+    corner[[0, 0, -1, -1], [0, -1, 0, -1]] = True
+    out_faces, worst = [], []
     for g in surface.groups:
-        _, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
-        n = np.cross(ds, dt)
-        size = np.linalg.norm(n, axis=-1, keepdims=True)
+        keep = np.ones(len(g.faces), dtype=bool) if faces is None else np.isin(g.faces, faces)
+        if not keep.any():
+            continue
+        _, n, size = _grid_normals(g.coefficients[keep], samples)
         regular = (size > singular * size.max(axis=1, keepdims=True)).reshape(-1, samples, samples)
-        corner = np.zeros((samples, samples), dtype=bool)
-        corner[[0, 0, -1, -1], [0, -1, 0, -1]] = True
         regular |= ~corner  # only the four corners may be singular
-        n /= np.maximum(size, 1e-300)
         n = n.reshape(-1, samples, samples, 3)
         cos_s = np.einsum("kabc,kabc->kab", n[:, 1:], n[:, :-1])
         cos_t = np.einsum("kabc,kabc->kab", n[:, :, 1:], n[:, :, :-1])
         along_s = np.where(regular[:, 1:] & regular[:, :-1], cos_s, 1.0).min(axis=(1, 2))
         along_t = np.where(regular[:, :, 1:] & regular[:, :, :-1], cos_t, 1.0).min(axis=(1, 2))
-        faces.append(g.faces)
+        out_faces.append(g.faces[keep])
         worst.append(np.minimum(along_s, along_t))
-    if not faces:
+    if not out_faces:
         return np.zeros(0, np.int64), np.zeros(0)
-    return np.concatenate(faces), np.concatenate(worst)
+    return np.concatenate(out_faces), np.concatenate(worst)
 
 
 def blending_function(operator: SurfaceOperator, control_point: int, samples: int = 17):
@@ -611,7 +619,9 @@ def ep_quality(
     topo = topology or Topology(mesh)
     eps = topo.extraordinary if eps is None else np.atleast_1d(np.asarray(eps, dtype=np.int64))
     surface = operator.evaluate(mesh.vertices)
-    turning_faces, turning = normal_turning(surface, samples=samples)
+    ring_faces = {v: topo.face[topo.one_ring(v)] for v in eps.tolist()}
+    wanted = np.concatenate(list(ring_faces.values())) if ring_faces else np.zeros(0, np.int64)
+    turning_faces, turning = normal_turning(surface, samples=samples, faces=wanted)
     turning_of = dict(zip(turning_faces.tolist(), turning.tolist()))
     report = []
     for v in eps.tolist():
@@ -639,7 +649,7 @@ def ep_quality(
                 second_maximum=second,
                 prominence=prominence,
                 seam_gap=float(gap.max()),
-                fold=min((turning_of[f] for f in topo.face[topo.one_ring(v)].tolist() if f in turning_of), default=1.0),
+                fold=min((turning_of[f] for f in ring_faces[v].tolist() if f in turning_of), default=1.0),
             )
         )
     return report

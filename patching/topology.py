@@ -149,6 +149,12 @@ class Topology:
         h = np.asarray(h)
         return np.where(h >= 0, self.twin[self.prev[np.maximum(h, 0)]], -1)
 
+    def rotate_back(self, h: np.ndarray) -> np.ndarray:
+        """The inverse of ``rotate``: next(twin(h)); -1 where that crosses the boundary."""
+        h = np.asarray(h)
+        t = np.where(h >= 0, self.twin[np.maximum(h, 0)], -1)
+        return np.where(t >= 0, self.next[np.maximum(t, 0)], -1)
+
     def fans(self, vertices: np.ndarray):
         """Yield (ring, boundary) per group of ``vertices`` with the same number of faces and
         boundary flag: ring (E, k) their outgoing half-edges in rotation order (one per face),

@@ -9,6 +9,7 @@ import patching
 from patching.auxiliary_points import onward_interval
 from patching.evaluation import normal_turning
 from patching.topology import Topology
+from tests.test_evaluation import ep_disc
 from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, with_random_intervals
 
 CUBE = patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
@@ -29,6 +30,20 @@ def test_detector_sees_a_fold_and_not_a_smooth_patch():
     assert worst[list(faces).index(1)] < -0.9
 
 
+def test_rotate_back_undoes_rotate():
+    """Topology.rotate_back, which onward_interval walks with, on an open mesh: the inverse of
+    rotate wherever rotate stays inside, -1 across the boundary."""
+    mesh = ep_disc(5)
+    topo = Topology(mesh)
+    h = np.arange(topo.origin.size)
+    turned = topo.rotate(h)
+    inside = turned >= 0
+    np.testing.assert_array_equal(topo.rotate_back(turned[inside]), h[inside])
+    back = topo.rotate_back(h)
+    np.testing.assert_array_equal(topo.rotate(back[back >= 0]), h[back >= 0])
+    assert (topo.rotate_back(h[topo.twin < 0]) == -1).all()
+
+
 def test_first_ring_points_of_adjacent_eps_never_cross():
     """Section 3.5 step 1 at both ends of an edge between two EPs: w + w' < 1 (the reading of
     a_i at an irregular E_i, ``onward_interval``).  The former reading a_i = d_i gives
@@ -37,8 +52,7 @@ def test_first_ring_points_of_adjacent_eps_never_cross():
     topo = Topology(mesh)
     iv = topo.halfedge_interval
     h = np.arange(topo.origin.size)
-    around = lambda x: 0.5 * (iv[topo.rotate(topo.rotate(x))] + iv[topo.next[topo.twin[topo.next[topo.twin[x]]]]])  # noqa: E731
-    behind = around(h)  # (d_{i-2} + d_{i+2}) / 2 at the near end
+    behind = 0.5 * (iv[topo.rotate(topo.rotate(h))] + iv[topo.rotate_back(topo.rotate_back(h))])  # (d_{i-2} + d_{i+2}) / 2 at P_0
     a = onward_interval(topo, h)
     w = behind / (behind + iv + a)
     w_far = w[topo.twin]
