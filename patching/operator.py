@@ -124,8 +124,8 @@ def build_operator(
     # levels meeting at T-junctions).  M of the refined mesh times the steps' S acts on the
     # original control points; regular quad regions keep their surface (a step there is knot
     # insertion).
-    steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
-    if steps and (steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES):
+    steps, adaptive = _refinement(topo)
+    if adaptive:
         return _adaptive_operator(mesh, angles, anchors, interior)
     if steps:
         from .subdivision import subdivision_operator
@@ -260,13 +260,21 @@ def _semi_sharp_steps(topo: Topology) -> int:
     return int(np.ceil(semi.max())) if semi.size else 0
 
 
+def _refinement(topo: Topology) -> tuple[int, bool]:
+    """(steps, adaptive): the subdivision steps taken before patching (semi-sharp tags, or one
+    for n-gons), and whether they are too many to take globally (then ``adaptive``)."""
+    mesh = topo.mesh
+    steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
+    return steps, steps > 0 and (steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES)
+
+
 def patched_mesh(mesh: ControlMesh) -> ControlMesh:
     """The all-quad mesh whose faces the patches of ``build_operator(mesh)`` cover: the mesh
     itself, or after the global subdivision steps taken for semi-sharp tags and n-gons (its
     positions those steps' refinement of the control points).  Refused (UnsupportedError)
     where the refinement is adaptive: there patches of several levels cover the faces."""
-    steps = _semi_sharp_steps(Topology(mesh)) or (0 if mesh.is_quad_mesh else 1)
-    if steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES:
+    steps, adaptive = _refinement(Topology(mesh))
+    if adaptive:
         raise UnsupportedError(f"{mesh.name} is refined adaptively: its patches cover faces of several levels", mesh.name)
     from .subdivision import subdivision_operator
 
