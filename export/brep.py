@@ -57,7 +57,10 @@ from OCP.TopoDS import (
 from patching.errors import MeshError
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-__all__ = ["BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces"]
+__all__ = [
+    "BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
+    "refuse_no_volume",
+]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
 RELATIVE_TOLERANCE = 1e-7
@@ -203,11 +206,9 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     accept the result, else ``BrepError``; ``check=False`` returns it unchecked, for tests
     that measure deliberately inconsistent surfaces.
     """
-    patches = _check_input(surface)
+    patches = checked_patches(surface, check)
     topo = surface.topology
     tol = shape_tolerance(surface)
-    if check:
-        _refuse_degenerate_sides(surface, patches, tol)
     builder = BRep_Builder()
     corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
     pieces = topo.pieces
@@ -259,10 +260,28 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     volumes: list[float] = []
     shape = assemble(builder, edges, faces, topo, lambda solid: volumes.append(_volume(solid)) or volumes[-1] < 0.0)
     if check:
-        if volumes and min(map(abs, volumes)) <= tol * max(surface.size, tol) ** 2:
-            raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
+        refuse_no_volume(surface, volumes)
         _require_valid(shape, faces, patches)
     return shape
+
+
+def checked_patches(surface: BezierSurface, check: bool = True) -> list[tuple[int, int, int, np.ndarray]]:
+    """[(row, degree, face, (d+1, d+1, 3) net)] of ``surface`` in row order, after the checks
+    every B-rep builder (``to_shape``, ``export.pack``) makes first: the topology arrays
+    against the patches (BrepError: a bug), and with ``check`` no patch side of no length
+    (MeshError naming the face: bad input)."""
+    patches = _check_input(surface)
+    if check:
+        _refuse_degenerate_sides(surface, patches, shape_tolerance(surface))
+    return patches
+
+
+def refuse_no_volume(surface: BezierSurface, volumes) -> None:
+    """MeshError when a closed component's volume (one value per solid) is zero to within
+    tolerance x size^2: the control points enclose nothing (bad input, not a bug)."""
+    tol = shape_tolerance(surface)
+    if len(volumes) and min(abs(float(v)) for v in volumes) <= tol * max(surface.size, tol) ** 2:
+        raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
 
 
 def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> None:

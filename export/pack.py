@@ -45,7 +45,20 @@ from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 from patching.evaluation import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import BrepError, _bezier_curve, _bezier_surface, _line, _pcurve, _side_row, assemble, bound_face, patch_components, shape_tolerance
+from .brep import (
+    BrepError,
+    _bezier_curve,
+    _bezier_surface,
+    _line,
+    _pcurve,
+    _side_row,
+    assemble,
+    bound_face,
+    checked_patches,
+    patch_components,
+    refuse_no_volume,
+    shape_tolerance,
+)
 
 __all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
@@ -155,10 +168,6 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
     return blocks
 
 
-def _nets(surface: BezierSurface) -> list[np.ndarray]:
-    return [net for _, _, _, net in surface.patches()]
-
-
 def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
     """The B-spline of a block (steps 2 and 3), or None if it is not the patches to EXACTNESS."""
     w, h = block.rows.shape
@@ -231,7 +240,7 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     through one edge per side (``export.brep.to_shape`` builds those surfaces)."""
     topo = surface.topology
     topo.require_whole_sides("packing faces")
-    nets = _nets(surface)
+    nets = [net for _, _, _, net in checked_patches(surface, check)]  # to_shape's checks: bad input is refused alike
     tol = shape_tolerance(surface)
     builder = BRep_Builder()
     corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
@@ -306,10 +315,13 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
     face_rows = [plan[1] if plan[0] == "patch" else int(plan[1].rows.flat[0]) for plan in faces_plan]
-    shape = assemble(builder, list(edges.values()), faces, topo, _inside_out(surface), face_rows)
+    volumes = _component_volumes(surface)
+    order = iter(volumes.tolist())
+    shape = assemble(builder, list(edges.values()), faces, topo, lambda solid: next(order) < 0.0, face_rows)
     if check:
         from OCP.BRepCheck import BRepCheck_Analyzer
 
+        refuse_no_volume(surface, volumes)
         if not BRepCheck_Analyzer(shape).IsValid():
             raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")
     blocks = tuple((p[1], p[3], p[4]) for p in faces_plan if p[0] == "block")
@@ -331,13 +343,13 @@ def _signed_volumes(surface: BezierSurface) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def _inside_out(surface: BezierSurface):
-    """``assemble``'s orientation test without OCC's slow integration of multi-span faces:
-    called once per closed component, in component order."""
+def _component_volumes(surface: BezierSurface) -> np.ndarray:
+    """(c,) signed volume of each closed component of the patches, in component order (the
+    order in which ``assemble`` asks whether a solid is inside out): its orientation test and
+    the no-volume check without OCC's slow integration of multi-span faces."""
     label, closed = patch_components(surface.topology)
     volumes = np.bincount(label, weights=_signed_volumes(surface), minlength=closed.size)
-    order = iter(np.flatnonzero(closed).tolist())
-    return lambda solid: volumes[next(order)] < 0.0
+    return volumes[closed]
 
 
 def _boundary(block: Block, with_cell: bool = False):

@@ -134,3 +134,23 @@ def test_inside_out_mesh_gives_a_positive_solid():
     props = GProp_GProps()
     BRepGProp.VolumeProperties_s(shape, props, 1e-12, False)
     assert props.Mass() == pytest.approx(-net_volume(surface), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "name, positions, message",
+    [
+        ("point", ["0 0 0"] * 8, "side 0 of the patch on face 0 has no length"),
+        ("flat", [f"{x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2, "encloses no volume"),
+    ],
+)
+def test_pack_refuses_degenerate_geometry_as_build_does(tmp_path, run_cli, name, positions, message):
+    """A cube collapsed to a point or a plane is refused by ``build`` (test_cli); with --pack
+    it was written (exit 0): to_packed_shape skipped to_shape's input checks."""
+    from tests.test_cli import _assert_refused
+
+    mesh = tmp_path / f"{name}.obj"
+    faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
+    mesh.write_text("\n".join([f"v {p}" for p in positions] + faces) + "\n")
+    out = tmp_path / "out.step"
+    _assert_refused(run_cli("build", mesh, "-o", out, "--pack"), message)
+    assert not out.exists()
