@@ -243,9 +243,12 @@ def _submesh(mesh: ControlMesh, topo: Topology, faces: np.ndarray, clear_semi_sh
 # Seeds: what needs level N
 
 
-def _uniform(mesh: ControlMesh) -> bool:
-    values = np.array(list(mesh.intervals.values()), dtype=np.float64)
-    return bool(values.size == 0 or (values.min() == values.max() and values[0] > 0))
+def _uniform(topo: Topology) -> bool:
+    """True when every edge has one and the same positive knot interval.  Read on the edges,
+    not on the tags: a strip without a tag keeps the default 1, so tags that all say 2 still
+    make the knots non-uniform."""
+    d = topo.edge_interval
+    return bool(d.size == 0 or (d.min() == d.max() and d[0] > 0))
 
 
 def _seed_vertices(topo: Topology, uniform: bool) -> np.ndarray:
@@ -312,8 +315,8 @@ def adaptive_operator(
     steps = global_steps(mesh)
     if steps > MAX_ADAPTIVE_STEPS:
         raise UnsupportedError(f"sharpness needs {steps} adaptive levels; at most {MAX_ADAPTIVE_STEPS} are done", mesh.name)
-    uniform = _uniform(mesh)
     topo = Topology(mesh)
+    uniform = _uniform(topo)
     n0 = mesh.n_vertices
     lev = _Level(mesh, topo, np.arange(mesh.n_faces), sp.identity(n0, format="csr"), topo.twin < 0)
     domain = np.ones(mesh.n_faces, dtype=bool)

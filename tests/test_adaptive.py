@@ -79,6 +79,10 @@ def meshes():
     yield "grid_uniform", patching.from_arrays(v, f, creases={(44, 45): 3.0, (45, 46): 3.0}, corners={60: 2.0})
     v, f, iv = grid(10, 9, rng)
     yield "grid_random", patching.from_arrays(v, f, intervals=iv, creases={(44, 45): 2.0, (45, 46): 2.0})
+    # One interval tag: every tag value is 2, but the untagged strips keep 1, so the knots are
+    # not uniform and the boundary vertices are no regular crease vertices (seeds).
+    v, f, _ = grid(10, 9)
+    yield "grid_one_tag", patching.from_arrays(v, f, intervals={(20, 30): 2.0}, creases={(44, 45): 3.0, (45, 46): 3.0})
     v, f, _ = torus(10, 8)
     a, b, c, d = f[44]
     f = f[:44] + [[a, b, c], [a, c, d]] + f[45:]  # two triangles: level 0 is refined everywhere
