@@ -84,25 +84,28 @@ class Block:
 
 
 def _neighbours(surface: BezierSurface) -> np.ndarray:
-    """(p, 4, 2) int64: (row, side) across each side; (-1, -1) on a boundary or where an edge
-    has other than two sides (left unpacked)."""
-    side_edge = np.asarray(surface.topology.side_edge)
-    users: dict[int, list[tuple[int, int]]] = {}
-    for (row, side), eid in np.ndenumerate(side_edge):
-        users.setdefault(int(eid), []).append((row, side))
-    out = np.full(side_edge.shape + (2,), -1, dtype=np.int64)
-    for pair in users.values():
-        if len(pair) == 2 and pair[0][0] != pair[1][0]:
-            (ra, sa), (rb, sb) = pair
-            out[ra, sa] = (rb, sb)
-            out[rb, sb] = (ra, sa)
-    return out
+    """(p, 4, 2) int64: (row, side) across each side; (-1, -1) on a boundary, where an edge
+    has other than two sides, or where both are one patch's (left unpacked)."""
+    side_edge = np.asarray(surface.topology.side_edge, dtype=np.int64).ravel()
+    out = np.full((side_edge.size, 2), -1, dtype=np.int64)
+    by_edge = np.argsort(side_edge, kind="stable")
+    uses = np.bincount(side_edge, minlength=int(side_edge.max()) + 1 if side_edge.size else 0)
+    e = side_edge[by_edge]
+    starts = (e[:-1] == e[1:]) & (uses[e[:-1]] == 2)  # the two sides of an edge, sorted together
+    first, second = by_edge[:-1][starts], by_edge[1:][starts]
+    pair = first // 4 != second // 4
+    a, b = first[pair], second[pair]
+    out[a] = np.stack([b // 4, b % 4], axis=1)
+    out[b] = np.stack([a // 4, a % 4], axis=1)
+    return out.reshape(-1, 4, 2)
 
 
 def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
     """Rectangular blocks of at least 2 bicubic patches (module docstring, step 1).
 
     spans: (p, 2) float64, the knot intervals of each patch along its s and t.
+    No side on a block's boundary faces a patch of the same block (a full ring of a torus,
+    or a helix of patches on a twisted one), so that no packed face meets itself along a seam.
     Raises UnsupportedError for a surface with split sides (T-junctions)."""
     surface.topology.require_whole_sides("packing faces")
     p = surface.n_patches
@@ -122,6 +125,10 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             return None
         return int(r), int((s - (side + 2)) % 4)  # its side s plays the opposite block side
 
+    def faces_block(cells, sides, block: set) -> bool:
+        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block``."""
+        return any((x := across(r, t, k)) is not None and x[0] in block for r, t in cells for k in sides)
+
     blocks = []
     for seed in range(p):
         if not free[seed]:
@@ -132,10 +139,12 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             nxt = across(*row0[-1], 1)
             if nxt is None or not free[nxt[0]] or nxt[0] in taken:
                 break
+            # Its sides 0, 1, 2 stay on the block's boundary (or become inner sides towards
+            # patches not yet taken): none may face the row itself (a ring closes at side 1).
+            if faces_block([nxt], (0, 1, 2), taken | {nxt[0]}):
+                break
             row0.append(nxt)
             taken.add(nxt[0])
-        if len(row0) > 1 and (x := across(*row0[-1], 1)) is not None and x[0] == seed:
-            taken.discard(row0.pop()[0])  # a full ring: the face would need a seam
         grid = [row0]
         while len(grid) < MAX_SIDE:
             above = [across(r, t, 2) for r, t in grid[-1]]
@@ -147,12 +156,12 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             # A grid: right of each patch above is the next one above.
             if any(across(*above[i], 1) != above[i + 1] for i in range(len(above) - 1)):
                 break
+            # The new row's outer sides: 2 of every patch, 3 of the first and 1 of the last.
+            block = taken | set(ids)
+            if faces_block(above, (2,), block) or faces_block(above[:1], (3,), block) or faces_block(above[-1:], (1,), block):
+                break
             grid.append(above)
             taken.update(ids)
-        if len(grid) > 1 and any(across(r, t, 2) is not None and across(r, t, 2)[0] == grid[0][i][0]
-                                 for i, (r, t) in enumerate(grid[-1])):
-            for r, _ in grid.pop():
-                taken.discard(r)
         if len(taken) < 2:
             continue
         rows = np.array([[r for r, _ in line] for line in grid], dtype=np.int64).T  # (w, h)

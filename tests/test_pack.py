@@ -154,3 +154,34 @@ def test_pack_refuses_degenerate_geometry_as_build_does(tmp_path, run_cli, name,
     out = tmp_path / "out.step"
     _assert_refused(run_cli("build", mesh, "-o", out, "--pack"), message)
     assert not out.exists()
+
+
+def twisted_torus(m: int = 8, n: int = 6) -> patching.ControlMesh:
+    """A regular m x n torus grid glued with a shift: going once around in u climbs one row
+    in v, so the rows of patches along u form one helix through all m n faces."""
+    def vid(i, k):
+        return (i % m) * n + (k + i // m) % n
+
+    i, k = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(n), indexing="ij"))
+    a, b = 2 * np.pi * i / m, 2 * np.pi * (k + i / m) / n
+    vertices = np.stack([(3 + np.cos(b)) * np.cos(a), (3 + np.cos(b)) * np.sin(a), np.sin(b)], -1)
+    faces = [[vid(x, y), vid(x + 1, y), vid(x + 1, y + 1), vid(x, y + 1)] for x, y in zip(i.tolist(), k.tolist())]
+    return patching.from_arrays(vertices, faces, name="twisted")
+
+
+def test_no_packed_face_meets_itself():
+    """On the twisted torus a block grown along u winds around the helix: before, a 47 x 1
+    block's sides 0 and 2 met each other along 46 edges, each then a seam of that one
+    non-periodic face (valid to BRepCheck, but not the seamless faces the module promises).
+    No boundary side of a block may face a patch of the same block."""
+    from tests.test_brep import edges_of
+
+    mesh = twisted_torus()
+    surface = patching.build(mesh)
+    shape, report = to_packed_shape(surface, patch_spans(surface, mesh))
+    assert report.packed_faces >= 1
+    edges = edges_of(shape)
+    faces = faces_of(shape)
+    assert not any(BRep_Tool.IsClosed_s(e, f) for f in faces for e in edges)
+    report_c = check_continuity(shape)
+    assert report_c.valid and report_c.n_solids == 1 and report_c.g1
