@@ -180,13 +180,17 @@ def build_operator(
     if quintic_faces.size:
         groups_ep = ep_groups(topo, eps, feats)
         g1 = G1Assembly(topo, groups_ep, face_row, angles)
-        # Compose the row mixings first (few entries per row), then apply them once to the
-        # extraction rows, whose rows are long: far cheaper than four passes over long rows.
+        # Compose the row mixings first (few entries per row, most rows untouched), then apply
+        # them once to the elevated rows and the extraction: cheaper than a pass over the
+        # longer elevated rows per step (serial, half-EP mesh: 0.13 s against 0.16 s).
         g1_steps = (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ())
+        steps_composed = None
         for solve in g1_steps:
             mixer = RowMixer(n_rows)
             solve(mixer)
-            mixing = product(mixer.matrix(), mixing)
+            step = mixer.matrix()
+            steps_composed = step if steps_composed is None else product(step, steps_composed)
+        mixing = product(steps_composed, mixing)
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
