@@ -1,9 +1,10 @@
-"""Feature-adaptive refinement for semi-sharp creases (issue 4): a PROTOTYPE, not wired into
-``operator.build_operator`` or the export yet.
+"""Feature-adaptive refinement for semi-sharp creases (issue 4).
 
 ``build_operator`` handles semi-sharp tags by ``N = ceil(s)`` *global* subdivision steps before
-patching; the pawn (588 faces, s = 6) would need 2.4 M faces.  Here only the faces near what
-still needs the sharp rules are refined again.  Level 0 is the input mesh; ``G_j`` is the
+patching while the refined mesh stays small; beyond that (``operator._refinement``) it takes
+this module's patches instead, with the T-junctions as split sides (``split_sides``): the pawn
+(588 faces, s = 6) would need 2.4 M faces.  Here only the faces near what still needs the
+sharp rules are refined again.  Level 0 is the input mesh; ``G_j`` is the
 global level-j mesh (``subdivision.subdivide(mesh, j)``), which is never built: at level j
 only a *window* ``W_j``, a submesh of ``G_j``, is.  Its faces are
 
@@ -47,7 +48,6 @@ Child c covers the parent's parameter square corner c; parent side k is child k'
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -56,12 +56,14 @@ import scipy.sparse as sp
 from .errors import UnsupportedError
 from .features import sharp_edges
 from .mesh import INFINITELY_SHARP, ControlMesh
-from .operator import build_operator
+from .operator import _refinement, build_operator
 from .subdivision import subdivision_operator
 from .surface import CORNER_PARAMETERS
 from .topology import Topology
 
-__all__ = ["AdaptivePatches", "adaptive_operator", "global_steps", "child_parameters", "MAX_ADAPTIVE_STEPS"]
+__all__ = [
+    "AdaptivePatches", "adaptive_operator", "global_steps", "child_parameters", "junction_residuals", "MAX_ADAPTIVE_STEPS",
+]
 
 #: Most adaptive levels (gregory_test7 needs 9).
 MAX_ADAPTIVE_STEPS = 10
@@ -75,14 +77,11 @@ PATCH_MARGIN = 4
 RULE_DEPTH = 3
 
 
-def global_steps(mesh: ControlMesh) -> int:
+def global_steps(mesh: ControlMesh, topology: Topology | None = None) -> int:
     """N: ceil of the largest finite sharpness (edges and corners), or 1 for a mesh with
-    non-quad faces and no semi-sharp tag, 0 otherwise: the steps ``build_operator`` takes."""
-    values = np.array(list(mesh.creases.values()) + list(mesh.corners.values()), dtype=np.float64)
-    semi = values[(values > 0) & (values < INFINITELY_SHARP)]
-    if semi.size:
-        return int(math.ceil(semi.max()))
-    return 0 if mesh.is_quad_mesh else 1
+    non-quad faces and no semi-sharp tag, 0 otherwise: the steps ``build_operator`` takes
+    (read from ``operator._refinement`` itself, so the two cannot drift apart)."""
+    return _refinement(topology or Topology(mesh))[0]
 
 
 @dataclass
@@ -134,6 +133,7 @@ class AdaptivePatches:
 
     @property
     def n_patches(self) -> int:
+        """Number of leaf patches."""
         return int(self.level.size)
 
     def nets(self, points: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -301,7 +301,7 @@ def adaptive_operator(
     anchors: str = "eigen-polyhedron",
     keep_levels: bool = False,
     interior: str = "extraction",
-):
+) -> AdaptivePatches | tuple[AdaptivePatches, list[_Level]]:
     """The adaptive patches of ``mesh`` (module docstring): leaves refined near seeds only.
 
     radius: face rings around the seeds refined at each level.  2 is the least that is exact:
@@ -312,10 +312,10 @@ def adaptive_operator(
     Raises UnsupportedError beyond MAX_ADAPTIVE_STEPS levels, and whatever
     ``subdivision_operator`` / ``build_operator`` raise on the windows.
     """
-    steps = global_steps(mesh)
+    topo = Topology(mesh)
+    steps = global_steps(mesh, topo)
     if steps > MAX_ADAPTIVE_STEPS:
         raise UnsupportedError(f"sharpness needs {steps} adaptive levels; at most {MAX_ADAPTIVE_STEPS} are done", mesh.name)
-    topo = Topology(mesh)
     uniform = _uniform(topo)
     n0 = mesh.n_vertices
     lev = _Level(mesh, topo, np.arange(mesh.n_faces), sp.identity(n0, format="csr"), topo.twin < 0)
@@ -402,7 +402,7 @@ def adaptive_operator(
     return (result, levels) if keep_levels else result
 
 
-def _junctions(levels: list, mesh0: ControlMesh) -> np.ndarray:
+def _junctions(levels: list[_Level], mesh0: ControlMesh) -> np.ndarray:
     """Pairs of leaf sides that meet (AdaptivePatches.junctions), found by walking from every
     leaf side into the same-level face across it and down its refined descendants."""
     out = []
@@ -435,13 +435,13 @@ def _junctions(levels: list, mesh0: ControlMesh) -> np.ndarray:
     return np.array(out, dtype=np.float64).reshape(-1, 6)
 
 
-def _descend(levels, mesh0, j, gid, side, a, b):
-    """Leaf pieces (patch, side, u0, u1) along ``side`` of the refined level-j face ``gid``,
-    u in that side's parameter, restricted to [a, b]."""
+def _descend(levels: list[_Level], mesh0: ControlMesh, j: int, gid: int, side: int, a: float, b: float):
+    """Yield the leaf pieces (patch, side, u0, u1) along ``side`` of the refined level-j face
+    ``gid``, u in that side's parameter, restricted to [a, b]."""
     nxt = levels[j + 1]
     mid = 0.5 * (a + b)
     for corner, child_side, lo, hi in ((side, 0, a, mid), ((side + 1) % 4, 3, mid, b)):
-        cg = int(mesh0.face_offsets[gid]) + corner if j == 0 else 4 * gid + corner
+        cg = int(_child_gid(j, mesh0, gid, corner))
         f = nxt.local(cg)
         if f < 0 or nxt.status[f] == 0:
             raise AssertionError("a refined face's child is missing from the next domain (a bug)")
@@ -467,9 +467,7 @@ def junction_residuals(patches: AdaptivePatches, points: np.ndarray, samples: in
     junction whose patches differ in level, at ``samples`` points along each fine side."""
     from .evaluation import evaluate_nets
 
-    nets = {}
-    for d, (ids, arr) in patches.nets(points).items():
-        nets[d] = (ids, arr)
+    nets = patches.nets(points)
     where = {}
     for d, (ids, _) in nets.items():
         for k, p in enumerate(ids.tolist()):

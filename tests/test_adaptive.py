@@ -1,4 +1,4 @@
-"""Feature-adaptive refinement (patching.adaptive, a prototype for issue 4): the adaptive
+"""Feature-adaptive refinement (patching.adaptive, issue 4): the adaptive
 patches are the global construction's surface, and T-junctions are G1 (positions and normals)."""
 
 import dataclasses
