@@ -88,6 +88,8 @@ def build_operator(
     force_extraordinary: Sequence[int] = (),
     anchors: str = "eigen-polyhedron",
     interior: str = "extraction",
+    *,
+    _refined: bool = False,
 ) -> SurfaceOperator:
     """Build M for a closed polygon mesh: bicubic patches on regular faces, G1 bi-quintic
     patches on faces touching extraordinary points (seed 002, section 3); a mesh with
@@ -116,6 +118,11 @@ def build_operator(
     if interior not in INTERIOR_RULES:
         raise ValueError(f"interior must be one of {INTERIOR_RULES}, not {interior!r}")
     topo = topology or Topology(mesh)
+    if not _refined:
+        # Tears are judged on the user's mesh, before any refinement: refining a zero strip
+        # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
+        # 2^k zero strips where the surface is the input's (_refuse_torn_knots).
+        _refuse_torn_knots(topo)
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
     # faces take one step, which turns every polygon into quads (issue 4).  Done globally when
@@ -135,11 +142,10 @@ def build_operator(
         for _ in range(steps):
             step, refined = subdivision_operator(refined, rules="seed")
             composed = (step @ composed).tocsr()
-        inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior)
+        inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior, _refined=True)
         return SurfaceOperator(product(inner.matrix, composed), inner.groups, inner.topology, mesh.name)
     feats = features(topo)
     spans = face_spans(topo)
-    _refuse_torn_knots(topo, spans)
     # Hole faces (OpenSubdiv's `t hole`) and, under interpolateboundary 0, faces at the open
     # boundary give no patch; their control points still shape the faces around them, whose
     # rules do not change (features.faces_without_surface).
@@ -311,15 +317,26 @@ def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str, interior: s
     return SurfaceOperator(matrix, tuple(groups), split_side_topology(order.size, table), mesh.name)
 
 
-def _refuse_torn_knots(topo: Topology, spans: np.ndarray) -> None:
-    """Three zero intervals in a row inside the mesh make an interior knot of multiplicity 4:
-    a cubic B-spline is discontinuous there, so no closed surface exists (KnotError)."""
+def _refuse_torn_knots(topo: Topology) -> None:
+    """Three zero intervals in a row inside the user's mesh make an interior knot of
+    multiplicity 4: a cubic B-spline is discontinuous there for generic control points, so no
+    closed surface exists (KnotError naming the input's edge).
+
+    Judged on the input only (``build_operator`` skips it on its own refinements): a
+    subdivision step halves every interval, so one zero strip becomes two, then four; that is
+    knot insertion of the same knot value, which leaves the surface unchanged (the refined
+    control points coincide across the run), not a tear.  Quads only: a zero strip cannot
+    cross a triangle or n-gon (unequal intervals around it are refused, and equal zero ones put
+    zero spokes at the new extraordinary point)."""
     mesh = topo.mesh
+    quad = mesh.face_sizes == 4
     base = mesh.face_offsets[:-1]
     iv = topo.halfedge_interval
+    spans = face_spans(topo)
     for direction, (side_a, side_b) in enumerate(((1, 3), (0, 2))):
-        zero = spans[:, direction] == 0
-        ta, tb = topo.twin[base + side_a], topo.twin[base + side_b]
+        zero = quad & (spans[:, direction] == 0)
+        ta = np.where(quad, topo.twin[np.where(quad, base + side_a, 0)], -1)
+        tb = np.where(quad, topo.twin[np.where(quad, base + side_b, 0)], -1)
         inside = (ta >= 0) & (tb >= 0)
         width_a = np.where(ta >= 0, iv[topo.next[np.maximum(ta, 0)]], 1.0)
         width_b = np.where(tb >= 0, iv[topo.next[np.maximum(tb, 0)]], 1.0)

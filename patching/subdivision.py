@@ -878,6 +878,43 @@ def _check_nonuniform_support(ctx: _Context, seed: bool) -> None:
             f"intervals, alternating for even sides)",
             ctx.mesh.where("face", f),
         )
+    if seed:
+        _refuse_semi_sharp_on_zero(ctx)
+
+
+def _refuse_semi_sharp_on_zero(ctx: _Context) -> None:
+    """A semi-sharp crease or corner (0 < s < 10) at a vertex with a spoke of knot interval 0.
+
+    With a spoke interval eps > 0 the generalised eigen-polyhedron (``_tagged_rows``) gives the
+    face points around such a vertex and the points of its untagged spokes, and those rows
+    converge as eps -> 0 (error about eps: the rules are finite at 0 for one zero spoke); at 0
+    ``_tagged_rows`` leaves the vertex to knot insertion, whose interval beyond it is the zero
+    one mirrored (``ahead``): another rule, so S jumps (torus with one zero strip and an edge
+    of s = 1 on its side: face 0 from {0: 7/16, 1: 1/16, 10: 7/16, 11: 1/16} at eps = 1e-9 to
+    {10: 1/2, 11: 1/2}) and the patches fold.  Refused, never a wrong surface, until the
+    eigen-polyhedron is evaluated at zero spokes.  Checked on the mesh given: a step gives no
+    semi-sharp vertex a zero spoke unless its parent had one (the children of a semi-sharp
+    edge halve the intervals of the spokes at its ends), so within ``build_operator``'s steps
+    this fires on the first one, naming the user's ids."""
+    semi_edge = (ctx.es > 0) & np.isfinite(ctx.es)
+    semi_vertex = (ctx.vs > 0) & np.isfinite(ctx.vs)
+    semi_vertex[ctx.edges[semi_edge].ravel()] = True
+    bad = np.flatnonzero((ctx.d_e == 0) & semi_vertex[ctx.edges].any(axis=1))
+    if bad.size == 0:
+        return
+    a, b = (int(x) for x in ctx.edges[bad[0]])
+    v = a if semi_vertex[a] else b
+    crease = np.flatnonzero(semi_edge & (ctx.edges == v).any(axis=1))
+    if crease.size:
+        c0, c1 = (int(x) for x in ctx.edges[crease[0]])
+        tag = f"semi-sharp crease {c0}-{c1} (sharpness {ctx.es[crease[0]]:g})"
+    else:
+        tag = f"semi-sharp corner {v} (sharpness {ctx.vs[v]:g})"
+    raise UnsupportedError(
+        f"knot interval 0 on edge {a}-{b} at the {tag}: semi-sharp tags next to zero knot "
+        "intervals are not supported yet",
+        ctx.mesh.where("interval", (min(a, b), max(a, b))),
+    )
 
 
 # ------------------------------------------------------------------------------------------
