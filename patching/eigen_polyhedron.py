@@ -150,16 +150,20 @@ def characteristic_scale(valence: int) -> CharacteristicScale:
 # Input checking and the cache key
 
 
-def _as_intervals(intervals, batch: bool = False, min_valence: int = 3) -> np.ndarray:
+def _as_intervals(
+    intervals, batch: bool = False, min_valence: int = 3, zero_spokes: bool = False
+) -> np.ndarray:
     """(n,) float64 spoke intervals, checked; with ``batch`` also (g, n): g vertices at once.
-    ``min_valence`` 2 for the explicit vertex rule (no polyhedron needed), else 3."""
+    ``min_valence`` 2 for the explicit vertex rule (no polyhedron needed), else 3.
+    ``zero_spokes``: zero intervals allowed (``subdivision_rules.tagged_rules_batch``, whose
+    docstring says where its formulas have a limit at 0); negative ones never."""
     d = np.asarray(intervals, dtype=np.float64)
     if d.ndim not in ((1, 2) if batch else (1,)) or d.shape[-1] < min_valence:
         raise ValueError(
             f"spoke intervals: need a 1-D list of at least {min_valence} knot intervals, got "
             f"shape {d.shape}"
         )
-    bad = np.flatnonzero(~np.isfinite(d) | (d <= 0.0))
+    bad = np.flatnonzero(~np.isfinite(d) | ((d < 0.0) if zero_spokes else (d <= 0.0)))
     if bad.size:
         row = d.reshape(-1, d.shape[-1])[bad[0] // d.shape[-1]]
         raise ValueError(
@@ -251,7 +255,7 @@ def eigen_angles(intervals, angles: str = "standard") -> np.ndarray:
     )
 
 
-def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
+def spoke_lengths(intervals, lengths: str = "fourier", zero_spokes: bool = False) -> np.ndarray:
     """Lengths ``l_i = |E^_i - V^|`` of the eigen-polyhedron's spokes, (n,) float64 (or (g, n)
     for intervals (g, n): g vertices at once).
 
@@ -288,7 +292,7 @@ def spoke_lengths(intervals, lengths: str = "fourier") -> np.ndarray:
     rules), for uniform intervals.
     """
     _check_choice("lengths", lengths, LENGTH_CHOICES)
-    d = _as_intervals(intervals, batch=True)
+    d = _as_intervals(intervals, batch=True, zero_spokes=zero_spokes)
     n = d.shape[-1]
     if lengths == "appendix":
         dm1, dp1 = np.roll(d, 1, -1), np.roll(d, -1, -1)
@@ -367,12 +371,12 @@ def vertex_rule_weights(intervals) -> np.ndarray:
     return w
 
 
-def spoke_terms(intervals) -> tuple[np.ndarray, np.ndarray]:
+def spoke_terms(intervals, zero_spokes: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..], (n, 2n+1), and
     ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which seed 000's dart
     rule (``subdivision_rules``) splits between the two sides of the crease.  Intervals (g, n)
     give (g, n, 2n+1) and (g, n): g vertices at once (n >= 2, as :func:`vertex_rule_weights`)."""
-    d = _as_intervals(intervals, batch=True, min_valence=2)
+    d = _as_intervals(intervals, batch=True, min_valence=2, zero_spokes=zero_spokes)
     n = d.shape[-1]
     dm2, dp2, dm1 = np.roll(d, 2, -1), np.roll(d, -2, -1), np.roll(d, 1, -1)
     g = (dm2 + d + dp2) / (dm2 + 4.0 * d + dp2)

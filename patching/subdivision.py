@@ -87,9 +87,11 @@ Choices where the seeds are silent, written once:
   vertex's spoke intervals are all equal, section 2's BLZ rule is kept instead (on top of knot
   insertion): section 4's edge form with equal intervals is not BLZ's rule when
   theta != pi/2 (tests record the difference), and the acceptance asks for section 2 there.
-  A crease sector of a single face (theta = pi) makes the polyhedron degenerate, and a zero
-  spoke interval (a multiple knot, DESIGN 2) leaves it undefined: knot insertion with BLZ there
-  too.
+  A crease sector of a single face (theta = pi) makes the polyhedron degenerate: knot
+  insertion with BLZ there too.  A zero spoke interval (a multiple knot, DESIGN 2): knot
+  insertion on an open boundary (a clamped side, exactly the clamped NURBS); inside the mesh
+  refused (``_refuse_tagged_on_zero``: the rules' eps -> 0 limit exists, but it opens the
+  zero strip and the patches beside it do not close up).
 * An interior vertex of valence 2 with non-uniform intervals (two quads sharing two edges).
   The eigen-polyhedron of seed 000 section 3 needs n >= 3 (at n = 2, ``c_n = -1`` and
   ``tau = 4 / (c_n + 1 + sqrt((c_n + 9)(c_n + 1)))`` is infinite: the two spokes are opposite
@@ -129,6 +131,7 @@ from .errors import KnotError, UnsupportedError
 from .mesh import INFINITELY_SHARP, ControlMesh
 from .subdivision_rules import (
     CORNER,
+    KINDS,
     CREASE,
     DART,
     SMOOTH,
@@ -677,7 +680,9 @@ def _tagged_rows(ctx: _Context, claims: _Claims) -> None:
                 continue
         if equal and not (kind == DART and n != 4):
             continue
-        if d.min() <= 0.0:  # a zero interval (multiple knot): no polyhedron; knot insertion
+        if d.min() <= 0.0:  # a zero interval (multiple knot): knot insertion on the boundary
+            if not boundary and d.max() > 0.0:
+                _refuse_tagged_on_zero(ctx, v, kind, spoke_edges, sharp, d)
             continue
         cols = np.concatenate([[v], ends, ctx.dest[ctx.nxt[ring]]])
         targets = np.concatenate([[ctx.nf + ctx.ne + v], ctx.nf + spoke_edges, ctx.face[ring]])
@@ -700,6 +705,40 @@ def _tagged_rows(ctx: _Context, claims: _Claims) -> None:
         use = np.where(np.array([mm[4] for mm in members])[:, None], np.arange(defined.size) == 0, defined)
         gi, ri = np.nonzero(use)
         claims.add(targets[gi, ri], cols[gi], m[gi, ri])
+
+
+def _refuse_tagged_on_zero(ctx: _Context, v: int, kind: int, spoke_edges: np.ndarray,
+                           sharp: np.ndarray, d: np.ndarray) -> None:
+    """An interior tagged vertex (dart, crease or corner; here infinitely sharp, since
+    ``_refuse_semi_sharp_on_zero`` has refused the semi-sharp ones) with a spoke of knot
+    interval 0 among others that are not.
+
+    With the zero spoke at eps > 0 the eigen-polyhedron rules of ``tagged_rules_batch`` apply;
+    they converge as eps -> 0 (``tagged_rules_batch`` takes zero spokes and gives the limit,
+    error O(eps)), but the limit does not keep the zero strip degenerate: its spoke has length
+    ``l_k > 0`` in the polyhedron, so the refined points across the strip stop coinciding.
+    Knot insertion (what the vertex took before) keeps the strip degenerate but is another
+    rule, 0.97 x size away from the eps limit (torus 12 x 10, one zero strip, a ring of
+    infinitely sharp creases beside it, a semi-sharp crease elsewhere that makes
+    ``build_operator`` subdivide).  Neither is right: with the limit rules the patches beside
+    the strip do not close up (the strip's faces give no patch, and after two steps a run of
+    four zero strips is a tear: gaps of 0.05 x size, an invalid B-rep even after one step), so
+    the vertex is refused in one line naming the zero edge.  Open boundaries are not refused:
+    a clamped side (DESIGN 2) keeps knot insertion, which is exactly the clamped NURBS.  Fires
+    on the user's mesh (the first step): a later step gives no tagged vertex a zero spoke
+    unless the vertex, or the ends of its crease edge, had one already."""
+    zero = np.flatnonzero(d == 0.0)
+    a, b = (int(x) for x in ctx.edges[spoke_edges[zero[0]]])
+    if sharp.size:
+        c0, c1 = (int(x) for x in ctx.edges[spoke_edges[sharp[0]]])
+        tag = f"sharp crease {c0}-{c1} ({KINDS[kind]} vertex {v})"
+    else:
+        tag = f"sharp corner {v}"
+    raise UnsupportedError(
+        f"knot interval 0 on edge {a}-{b} at the {tag}: sharp features next to zero knot "
+        f"intervals are subdivided only on open boundaries (clamped sides) so far",
+        ctx.mesh.where("interval", (min(a, b), max(a, b))),
+    )
 
 
 # ------------------------------------------------------------------------------------------

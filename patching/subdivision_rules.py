@@ -207,6 +207,26 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     ``d_{i-1} d_{i+2}`` as in seed 002 (and ``eigen_polyhedron``).  Check (tests): equal
     intervals give the BLZ rules (centroid faces, ``gamma = 3/8 - cos(theta)/4`` edges,
     Catmull-Clark darts).
+
+    Zero spokes (a multiple knot, DESIGN 2) are taken, and the rules there are the limit of
+    the rules with the zero intervals replaced by eps -> 0.  Why the limit exists and equals
+    the rule at 0: every ingredient is a continuous function of the intervals wherever it is
+    defined at them, so no separate formula is needed at 0.  The lengths of eq. (5) are
+    linear in d (a zero spoke keeps ``l_k = (sum_j d_j |cos|) / 3 > 0`` while a spoke not
+    at right angles to it is positive).  The vertex terms (eqs. 6-10: ``g_i``, ``f_i``,
+    ``m_i``, mu) and the crease ``T`` (eq. 14) are rational with nonzero denominators.  The
+    bilinear solves (eqs. 18-21, 23-28) are the inverse of a bilinear map, smooth where the
+    root is simple (implicit function theorem).  So the rows are smooth in d there, and the
+    eps rules differ from the rule at 0 by O(eps): measured, about 1e-8 at eps = 1e-8 for
+    one zero spoke, dart, crease and corner, valence 3-6 (tests).  Where an ingredient is
+    undefined at 0 the limit is not that of the
+    formula: two opposite zero spokes at valence 4 (``l = 0``, ``E^_k = V^``: a degenerate
+    polyhedron), two zero sharp spokes at a crease (``T`` is 0/0), two zero spokes next to
+    each other at a dart.  Those raise BilinearError (no real root, or a non-finite row),
+    never a row of NaN.  ``subdivision`` does not use these rules at zero spokes yet:
+    the limit keeps the zero spoke at length ``l_k > 0``, so the refined points across a
+    zero strip stop coinciding and the patches beside the strip (which gives none) do not
+    close up (``subdivision._refuse_tagged_on_zero``).
     """
     from . import eigen_polyhedron as eig
 
@@ -214,7 +234,7 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     g, n = d.shape
     nf = n - 1 if boundary else n
     size = 1 + n + nf
-    ell = eig.spoke_lengths(d, "fourier") if n >= 3 else d.copy()
+    ell = eig.spoke_lengths(d, "fourier", zero_spokes=True) if n >= 3 else d.copy()
     phis, face_frame, spoke_frame = _frames(kind, n, tuple(sorted(sharp)), boundary)
     # frames (g, frames, size, 2): V^ = 0, E^_i, F^_i = E^_i + E^_{i+1}
     e_hat = ell[:, None, :, None] * np.stack([np.cos(phis), np.sin(phis)], axis=-1)[None]
@@ -225,7 +245,7 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     M = np.zeros((g, size, size))
     defined = np.zeros(size, bool)
     if kind == DART:
-        hg, w = eig.spoke_terms(d)  # (g, n, 2n + 1): a dart is interior, so size = 2n + 1
+        hg, w = eig.spoke_terms(d, zero_spokes=True)  # (g, n, 2n + 1): a dart is interior, so size = 2n + 1
         half = (n - 1) // 2 + 1
         xa, xb = hg[:, :half].sum(1), hg[:, half:].sum(1)
         wa, wb = w[:, :half].sum(1), w[:, half:].sum(1)
@@ -263,4 +283,10 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
             corners, Q, t_vec[:, None] + lam * frames[:, spoke_frame[spokes], e], f"{KINDS[kind]} edge", spokes
         )
         defined[e] = True
+    bad = np.flatnonzero(~np.isfinite(M[:, defined]).all(axis=(1, 2)))
+    if bad.size:  # zero spokes where the formulas are 0/0 (docstring)
+        raise eig.BilinearError(
+            f"{KINDS[kind]} vertex with spoke intervals {d[bad[0]].tolist()}: the rules are "
+            f"undefined (0/0) at these zero intervals", (int(bad[0]),)
+        )
     return TaggedRules(M, defined, P, t_vec)

@@ -3,8 +3,11 @@ build_operator takes for the creases split a zero strip into 2^k zero strips, wh
 insertion of the same knot (the surface is the input's), not a tear; tears are judged on the
 user's mesh and named by its ids.  Refused, in one line naming the user's ids: semi-sharp tags
 next to a zero interval (the subdivision rules there jump away from the intervals' eps -> 0
-limit and fold the patches) and zero intervals on the adaptive path (the patches of several
-levels leave the B-rep open)."""
+limit and fold the patches), infinitely sharp tags next to a zero interval when the mesh is
+subdivided (the same jump: a valid solid 0.968 away from its eps limit), and zero intervals on
+the adaptive path (the patches of several levels leave the B-rep open).  Seed 000's tagged
+rules themselves take a zero spoke and give their eps -> 0 limit (subdivision_rules); the
+build does not use them there yet, because that limit opens the zero strip."""
 
 import numpy as np
 import pytest
@@ -12,8 +15,10 @@ import pytest
 import export
 import patching
 from patching.adaptive import child_parameters
+from patching.eigen_polyhedron import BilinearError
 from patching.errors import KnotError, UnsupportedError
 from patching.evaluation import evaluate_nets
+from patching.subdivision_rules import CORNER, CREASE, DART, tagged_rules_batch
 from tests.test_adaptive import torus
 
 M, N = 12, 10  # torus(12, 10): vertex (i, k) is 10 i + k, face (i, k) is [10 i + k, 10 (i + 1) + k, ...]
@@ -148,3 +153,68 @@ def test_zero_interval_on_the_adaptive_path_is_refused_in_one_line():
     message = str(err.value)
     assert "\n" not in message
     assert "edge 0-10" in message and "adaptive" in message, message
+
+
+# Seed 000's generalised eigen-polyhedron rules at a zero spoke (subdivision_rules): the rule at
+# 0 is the limit of the rules at eps -> 0 where the formulas are defined there, and raises where
+# they are not.  Before: every zero spoke was a ValueError ("finite positive intervals").
+TAGGED = [(DART, n, (0,), False) for n in range(3, 7)]
+TAGGED += [(CREASE, n, (0, k), False) for n in range(4, 7) for k in range(2, n - 1)]
+TAGGED += [(CREASE, n, (0, n - 1), True) for n in range(3, 7)]
+TAGGED += [(CORNER, n, (0, k), False) for n in range(3, 7) for k in range(1, n)]
+
+
+@pytest.mark.parametrize("kind, n, sharp, boundary", TAGGED)
+def test_tagged_rules_at_one_zero_spoke_are_the_eps_limit(kind, n, sharp, boundary):
+    rng = np.random.default_rng(n + 10 * kind)
+    for k in range(n):
+        d = rng.uniform(0.5, 2.0, n)
+        rows = []
+        for eps in (0.0, 1e-6, 1e-8):
+            r = tagged_rules_batch(kind, np.where(np.arange(n) == k, eps, d)[None], sharp, boundary)
+            rows.append(r.matrix[0][r.defined])
+        assert np.isfinite(rows[0]).all()
+        d6, d8 = (float(np.abs(m - rows[0]).max()) for m in rows[1:])
+        assert d8 < 1e-6, (k, d8)  # measured 1e-10 to 3e-8: O(eps)
+        # linear in eps, or round-off where the rows do not read the zero spoke (valence 4)
+        assert d6 < 1e-14 or 90 < d6 / d8 < 110, (k, d6, d8)
+
+
+@pytest.mark.parametrize(
+    "kind, n, sharp, zeros",
+    [
+        (DART, 4, (0,), (1, 3)),  # opposite zero spokes: l = 0, a degenerate polyhedron
+        (CREASE, 4, (0, 2), (1, 3)),
+        (CREASE, 4, (0, 2), (0, 2)),  # both sharp spokes zero: T is 0/0
+        (DART, 5, (0,), (1, 2)),  # two zero spokes next to each other at a dart
+    ],
+)
+def test_tagged_rules_at_degenerate_zero_spokes_raise_in_one_line(kind, n, sharp, zeros):
+    d = np.ones(n)
+    d[list(zeros)] = 0.0
+    with pytest.raises(BilinearError) as err:
+        tagged_rules_batch(kind, d[None], sharp, False)
+    assert "\n" not in str(err.value)
+
+
+RING = {(10 + k, 10 + (k + 1) % N): 10.0 for k in range(N)}  # infinitely sharp, beside the strip
+
+
+def test_sharp_crease_ring_beside_a_zero_strip_without_steps_is_the_eps_limit():
+    """No subdivision: the patches at 0 are the eps limit (measured 5.9e-8 at eps = 1e-8)."""
+    surface = patching.build(mesh(ONE_STRIP, RING))
+    d6, d8 = (distance_to_eps(surface, ONE_STRIP, RING, eps) for eps in (1e-6, 1e-8))
+    assert d8 < 1e-6 * surface.size and 90 < d6 / d8 < 110
+
+
+@pytest.mark.parametrize("s", [1.0, 2.0])
+def test_sharp_crease_ring_beside_a_zero_strip_with_steps_is_refused_in_one_line(s):
+    """A semi-sharp crease elsewhere makes build_operator subdivide.  On main before: a valid
+    solid 0.968 away from its eps limit (knot insertion at the ring's vertices, the eigen-
+    polyhedron rules at eps); with the eps-limit rules the patches beside the strip do not
+    close up (invalid B-rep).  Refused, naming the user's zero edge and crease."""
+    with pytest.raises(UnsupportedError) as err:
+        patching.build_operator(mesh(ONE_STRIP, {**RING, (55, 56): s}))
+    message = str(err.value)
+    assert "\n" not in message
+    assert "edge 0-10 " in message and "sharp crease 10-11 " in message, message
