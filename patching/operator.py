@@ -21,7 +21,7 @@ from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction, regular_face_points
-from .errors import KnotError, UnsupportedError
+from .errors import KnotError, MeshError, UnsupportedError
 from .features import Features, faces_without_surface, features, refuse_singular_rings
 from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
@@ -378,5 +378,16 @@ def face_spans(topo: Topology) -> np.ndarray:
 def build(
     mesh: ControlMesh, angles: str = "optimized", anchors: str = "eigen-polyhedron", interior: str = "extraction"
 ) -> BezierSurface:
-    """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``."""
-    return build_operator(mesh, angles=angles, anchors=anchors, interior=interior).evaluate(mesh.vertices)
+    """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``.
+
+    MeshError when no face gives a patch (holes, interpolateboundary 0, zero intervals): an
+    empty surface is no solid or shell, and nothing the exporters could write."""
+    surface = build_operator(mesh, angles=angles, anchors=anchors, interior=interior).evaluate(mesh.vertices)
+    if surface.n_patches == 0:
+        causes = [f"{len(mesh.holes)} of {mesh.n_faces} faces are holes"] if mesh.holes else []
+        if mesh.interpolate_boundary == 0:
+            causes.append("interpolateboundary 0 drops every face at the open boundary")
+        if any(d == 0.0 for d in mesh.intervals.values()):
+            causes.append("zero knot intervals leave faces of no parametric area")
+        raise MeshError(f"no face gives a patch, the surface is empty ({'; '.join(causes) or 'no face has a patch'})", mesh.name)
+    return surface

@@ -133,3 +133,26 @@ def test_mutated_meshes_export_or_raise_the_error_family(data):
             assert str(exc) and "\n" not in str(exc)
             return
     assert not shape.IsNull()
+
+
+def test_a_mesh_where_no_face_gives_a_patch_is_refused_in_one_line():
+    """Found by fuzzing: an open grid under interpolateboundary 0, a mesh whose faces are all
+    holes, or a quad of zero span gave an empty surface, and the B-rep an internal error
+    (BrepError: the surface has no patches, exit 1)."""
+    import pytest
+
+    from patching.primitives import open_grid
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    grid = open_grid(4, 3)
+    cube = quad_mesh_with_eps("cube")
+    quad = ([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2, 3]])
+    cases = {
+        "interpolateboundary 0": patching.from_arrays(grid.vertices, grid.quads(), interpolate_boundary=0),
+        "holes": patching.from_arrays(cube.vertices, cube.quads(), holes=range(cube.n_faces)),
+        "zero knot intervals": patching.from_arrays(*quad, intervals={(0, 1): 0.0}),
+    }
+    for cause, mesh in cases.items():
+        with pytest.raises(patching.MeshError, match="no face gives a patch") as info:
+            patching.build(mesh)
+        assert cause in str(info.value) and "\n" not in str(info.value)
