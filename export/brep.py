@@ -59,7 +59,7 @@ from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
     "BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
-    "refuse_no_volume",
+    "refuse_no_volume", "refuse_round_off",
 ]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
@@ -261,7 +261,7 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     shape = assemble(builder, edges, faces, topo, lambda solid: volumes.append(_volume(solid)) or volumes[-1] < 0.0)
     if check:
         refuse_no_volume(surface, volumes)
-        _require_valid(shape, faces, patches)
+        _require_valid(shape, faces, patches, surface)
     return shape
 
 
@@ -282,6 +282,28 @@ def refuse_no_volume(surface: BezierSurface, volumes) -> None:
     tol = shape_tolerance(surface)
     if len(volumes) and min(abs(float(v)) for v in volumes) <= tol * max(surface.size, tol) ** 2:
         raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
+
+
+#: Round-off of the coordinates, as a fraction of the tolerance, from which a B-rep that
+#: OpenCASCADE rejects is put down to the coordinates: meshes moved away from the origin are
+#: rejected from 0.35 to 0.9 (cube, bipyramid, grids, torus, l_bracket), valid below.
+ROUND_OFF_FRACTION = 0.1
+
+
+def refuse_round_off(surface: BezierSurface) -> None:
+    """MeshError when the coordinates' round-off (machine epsilon times the largest
+    coefficient) reaches ``ROUND_OFF_FRACTION`` of the tolerance (1e-7 x size): a small mesh
+    far from the origin, whose points doubles cannot place within the tolerance.  Called when
+    ``BRepCheck_Analyzer`` rejects a B-rep, before calling that a bug."""
+    tol = shape_tolerance(surface)
+    largest = max((float(np.abs(g.coefficients).max()) for g in surface.groups if len(g.faces)), default=0.0)
+    round_off = float(np.finfo(np.float64).eps) * largest
+    if round_off >= ROUND_OFF_FRACTION * tol:
+        raise MeshError(
+            f"coordinates up to {largest:.3g} are too far from the origin for a mesh of size {surface.size:.3g}: "
+            f"their round-off ({round_off:.2g}) reaches the B-rep tolerance ({tol:.2g}); move the mesh nearer the origin",
+            surface.name,
+        )
 
 
 def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> None:
@@ -463,9 +485,10 @@ def _volume(shape: TopoDS_Shape) -> float:
     return props.Mass()
 
 
-def _require_valid(shape: TopoDS_Shape, faces: list[TopoDS_Face], patches) -> None:
+def _require_valid(shape: TopoDS_Shape, faces: list[TopoDS_Face], patches, surface: BezierSurface) -> None:
     if BRepCheck_Analyzer(shape).IsValid():
         return
+    refuse_round_off(surface)
     bad = []
     for f, (row, _degree, face, _net) in zip(faces, patches):
         if not BRepCheck_Analyzer(f).IsValid():

@@ -57,6 +57,7 @@ from .brep import (
     checked_patches,
     patch_components,
     refuse_no_volume,
+    refuse_round_off,
     shape_tolerance,
 )
 
@@ -332,6 +333,7 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
 
         refuse_no_volume(surface, volumes)
         if not BRepCheck_Analyzer(shape).IsValid():
+            refuse_round_off(surface)
             raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")
     blocks = tuple((p[1], p[3], p[4]) for p in faces_plan if p[0] == "block")
     return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)

@@ -156,3 +156,24 @@ def test_a_mesh_where_no_face_gives_a_patch_is_refused_in_one_line():
         with pytest.raises(patching.MeshError, match="no face gives a patch") as info:
             patching.build(mesh)
         assert cause in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_small_mesh_far_from_the_origin_is_refused_in_one_line_not_a_brep_bug():
+    """Found by fuzzing: the cube moved to 1e9 (size 1.7) has coordinates whose round-off
+    (2.2e-7) exceeds the B-rep tolerance (1.7e-7); OpenCASCADE rejected every face and the CLI
+    reported an internal error (BrepError, exit 1), packed or not.  Moved to 1e7 it builds."""
+    import pytest
+
+    from export import to_shape
+    from export.pack import patch_spans, to_packed_shape
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    cube = quad_mesh_with_eps("cube")
+    near = cube.with_positions(cube.vertices + 1e7)
+    assert not to_shape(patching.build(near)).IsNull()
+    far = cube.with_positions(cube.vertices + 1e9)
+    surface = patching.build(far)
+    for make in (lambda: to_shape(surface), lambda: to_packed_shape(surface, patch_spans(surface, far))):
+        with pytest.raises(patching.MeshError, match="too far from the origin") as info:
+            make()
+        assert "\n" not in str(info.value)
