@@ -16,10 +16,13 @@ import numpy as np
 
 from .errors import KnotError, MeshError, TagError
 
-__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP"]
+__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE"]
 
 #: Crease sharpness at or above which an edge is infinitely sharp (DESIGN 1, OpenSubdiv's 10).
 INFINITELY_SHARP = 10.0
+#: Largest coordinate magnitude taken: beyond it STL and glTF (32-bit floats, up to 3.4e38)
+#: would hold infinities, OpenCASCADE's meshing hangs (from 1e77) and volumes overflow.
+MAX_COORDINATE = 1e30
 
 
 class NupatchWarning(UserWarning):
@@ -138,6 +141,14 @@ def from_arrays(
     bad = np.flatnonzero(~np.isfinite(verts).all(axis=1))
     if bad.size:
         raise MeshError("non-finite vertex coordinate", where("vertex", int(bad[0])))
+    huge = np.flatnonzero(np.abs(verts).max(axis=1, initial=0.0) > MAX_COORDINATE)
+    if huge.size:
+        v = int(huge[0])
+        raise MeshError(
+            f"coordinate {float(np.abs(verts[v]).max()):.3g} of vertex {v} is beyond {MAX_COORDINATE:g}, "
+            "too large to export (STL and glTF hold 32-bit floats)",
+            where("vertex", v),
+        )
 
     if isinstance(faces, np.ndarray) and faces.ndim == 2:
         sizes = np.full(faces.shape[0], faces.shape[1], dtype=np.int64)

@@ -177,3 +177,28 @@ def test_a_small_mesh_far_from_the_origin_is_refused_in_one_line_not_a_brep_bug(
         with pytest.raises(patching.MeshError, match="too far from the origin") as info:
             make()
         assert "\n" not in str(info.value)
+
+
+def test_huge_coordinates_are_refused_in_one_line_naming_the_vertex(tmp_path):
+    """Found by fuzzing: the cube scaled by 1e40 wrote an STL of infinities (32-bit floats) with
+    exit 0; by 1e80 OpenCASCADE's meshing hung (STL, glTF, OBJ); by 1e120 it was refused as
+    'encloses no volume' (the volume overflows).  Up to MAX_COORDINATE it still exports."""
+    import pytest
+
+    from export.formats import write
+    from patching.mesh import MAX_COORDINATE
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    cube = quad_mesh_with_eps("cube")
+    faces = cube.quads()
+    for scale in (1e40, -1e80, 1e150):
+        with pytest.raises(patching.MeshError, match="of vertex 1 is beyond") as info:
+            patching.from_arrays(cube.vertices * scale, faces)
+        assert "\n" not in str(info.value)
+    with pytest.raises(patching.MeshError, match="cube.obj:3"):
+        parse_obj("v 0 0 0\nv 0 0 0\nv 1e300 0 0\nf 1 2 3\n", source="cube.obj")
+    points = cube.vertices / np.abs(cube.vertices).max() * MAX_COORDINATE
+    write(patching.build(patching.from_arrays(points, faces)), tmp_path / "big.stl")
+    data = np.fromfile(tmp_path / "big.stl", dtype=np.uint8)[84:].tobytes()
+    record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+    assert np.isfinite(np.frombuffer(data, dtype=record)["corners"]).all()
