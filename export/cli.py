@@ -162,10 +162,10 @@ def _build_worker(job: BuildJob) -> tuple[str, str, list[str]]:
 
 def _jobs(args: argparse.Namespace) -> list[BuildJob]:
     """One job per mesh, every option and output path checked before any work."""
-    from export.formats import format_of
+    from export.formats import check_tolerance, format_of
 
-    if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
-        raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
+    if args.tolerance is not None:
+        check_tolerance(args.tolerance)
     if args.jobs < 1:
         raise NupatchError(f"-j must be at least 1, not {args.jobs}", "command line")
     several = len(args.mesh) > 1

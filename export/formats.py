@@ -7,8 +7,8 @@ the argument, else the file's suffix), builds what the writer needs once and cal
 - ``step``, ``iges``, ``brep``: the exact B-rep through OpenCASCADE (STEPControl, IGESControl
   in B-rep mode, BRepTools' text format).
 - ``stl``, ``glb``, ``obj``: triangles of OpenCASCADE's tessellation (``BRepMesh_IncrementalMesh``
-  with linear deflection ``tolerance``, default 1e-3 of the control points' diagonal, and
-  angular deflection 0.5 rad).  Their points and *vertex normals come from the patches*: each
+  with linear deflection ``tolerance``, default 1e-3 of the control points' diagonal, at least
+  1e-7 (OpenCASCADE's precision), and angular deflection 0.5 rad).  Their points and *vertex normals come from the patches*: each
   tessellation node's (u, v) on its face is the patch parameter (s, t), where the Bézier net
   and its derivatives are evaluated (unit S_s x S_t), not from the facets.  Vertices are per
   face (a node on a shared edge appears once for each face), so a normal never averages two
@@ -37,12 +37,24 @@ from patching.surface import BezierSurface
 
 from .atomic import atomic_output
 
-__all__ = ["FORMATS", "SUFFIXES", "WRITERS", "Tessellation", "format_of", "tessellate", "write"]
+__all__ = ["FORMATS", "SUFFIXES", "WRITERS", "Tessellation", "check_tolerance", "format_of", "tessellate", "write"]
 
 #: Angular deflection of the tessellation (radians): OpenCASCADE's usual 0.5.
 ANGULAR_DEFLECTION = 0.5
 #: Default linear deflection, times ``BezierSurface.size``.
 RELATIVE_TOLERANCE = 1e-3
+#: Smallest linear deflection: OpenCASCADE's Precision::Confusion, below which
+#: BRepMesh_IncrementalMesh throws (Standard_NumericError); the default is raised to it.
+MIN_TOLERANCE = 1e-7
+
+
+def check_tolerance(tolerance: float) -> None:
+    """NupatchError (naming --tolerance) unless the linear deflection is finite and >= MIN_TOLERANCE."""
+    if not (np.isfinite(tolerance) and tolerance >= MIN_TOLERANCE):
+        raise NupatchError(
+            f"tessellation tolerance must be finite and at least {MIN_TOLERANCE:g} (OpenCASCADE's precision), not {tolerance:g}",
+            "--tolerance",
+        )
 
 
 @dataclass(frozen=True)
@@ -104,9 +116,8 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     if shape is None:
         shape = to_shape(surface)
     if tolerance is None:
-        tolerance = RELATIVE_TOLERANCE * surface.size
-    if not (tolerance > 0 and np.isfinite(tolerance)):
-        raise NupatchError(f"tessellation tolerance must be finite and > 0, not {tolerance}", "--tolerance")
+        tolerance = max(RELATIVE_TOLERANCE * surface.size, MIN_TOLERANCE)
+    check_tolerance(tolerance)
     mesher = BRepMesh_IncrementalMesh(shape, float(tolerance), False, ANGULAR_DEFLECTION, False)
     if not mesher.IsDone():
         raise RuntimeError("BRepMesh_IncrementalMesh failed")
@@ -308,8 +319,8 @@ def write(surface: BezierSurface, path: str | os.PathLike, fmt: str | None = Non
     """
     path = Path(path)
     fmt = format_of(path, fmt)
-    if tolerance is not None and not (np.isfinite(tolerance) and tolerance > 0):
-        raise NupatchError(f"tessellation tolerance must be finite and > 0, not {tolerance}", "--tolerance")
+    if tolerance is not None:
+        check_tolerance(tolerance)
     if shape is None:
         from .brep import to_shape
 

@@ -205,8 +205,9 @@ def test_format_follows_the_suffix_unless_given(tmp_path, run_cli, args, expecte
 @pytest.mark.parametrize("args, fragment, where", [
     (("-o", "{tmp}/out.ply"), "suffix '.ply'", "out.ply"),
     (("--format", "ply"), "invalid choice: 'ply'", "command line"),
-    (("-o", "{tmp}/out.stl", "--tolerance", "0"), "tolerance must be finite and > 0", "--tolerance"),
-    (("-o", "{tmp}/out.stl", "--tolerance", "nan"), "tolerance must be finite and > 0", "--tolerance"),
+    (("-o", "{tmp}/out.stl", "--tolerance", "0"), "tolerance must be finite and at least 1e-07", "--tolerance"),
+    (("-o", "{tmp}/out.stl", "--tolerance", "nan"), "tolerance must be finite and at least 1e-07", "--tolerance"),
+    (("-o", "{tmp}/out.stl", "--tolerance", "1e-300"), "tolerance must be finite and at least 1e-07", "--tolerance"),
     (("--angles", "random"), "invalid choice: 'random'", "command line"),
 ])
 def test_bad_output_options_are_refused_in_one_line(tmp_path, run_cli, args, fragment, where):

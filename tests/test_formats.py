@@ -212,3 +212,19 @@ def test_open_surface_and_bad_tolerance(tmp_path):
     with pytest.raises(patching.NupatchError, match="tolerance"):
         write(surface, tmp_path / "bad.stl", tolerance=-1.0)
     assert not (tmp_path / "bad.stl").exists()
+
+
+def test_a_tiny_mesh_tessellates_and_a_tolerance_below_occs_precision_is_refused(tmp_path):
+    """Found by fuzzing: a grid of size 7e-6 builds a valid shell, but its default deflection
+    (1e-3 x size) is below OpenCASCADE's precision (1e-7) and BRepMesh_IncrementalMesh threw
+    Standard_NumericError (an internal error, exit 1); so did --tolerance 1e-300."""
+    grid = open_grid(5, 4, [0, 1, 1, 0], [0, 1, 0], name="speck")
+    surface = patching.build(grid.with_positions(grid.vertices * 1e-6))
+    for fmt in TESSELLATED:
+        assert write(surface, tmp_path / f"speck.{fmt}").stat().st_size > 0
+    assert tessellate(surface).tolerance == formats.MIN_TOLERANCE
+    for tolerance in (1e-300, 0.5 * formats.MIN_TOLERANCE):
+        with pytest.raises(patching.NupatchError, match="at least 1e-07") as info:
+            write(surface, tmp_path / "bad.stl", tolerance=tolerance)
+        assert "\n" not in str(info.value)
+    assert not (tmp_path / "bad.stl").exists()
