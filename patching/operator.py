@@ -16,13 +16,14 @@ from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction, regular_face_points
 from .errors import KnotError, MeshError, UnsupportedError
-from .features import Features, faces_without_surface, features, refuse_singular_rings
+from .features import Features, faces_without_surface, features, refuse_singular_rings, sharp_edges
 from .g1_patches import G1Assembly, RowMixer, ep_groups
 from .mesh import ControlMesh
 from .parallel import product
@@ -123,6 +124,7 @@ def build_operator(
         # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
         # 2^k zero strips where the surface is the input's (_refuse_torn_knots).
         _refuse_torn_knots(topo)
+        _refuse_zero_strips_between_creases(topo)
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
     # faces take one step, which turns every polygon into quads (issue 4).  Done globally when
@@ -350,6 +352,45 @@ def _refuse_torn_knots(topo: Topology) -> None:
                 "knot of multiplicity 4 tears the surface",
                 mesh.where("interval", (min(a, b), max(a, b))),
             )
+
+
+def _refuse_zero_strips_between_creases(topo: Topology) -> None:
+    """A zero strip (one or more in a row) between two infinitely sharp interior edges: the
+    strip's faces collapse (no patch, their two long sides one B-rep edge), but the patches on
+    either side end on two different crease curves, so the surface tears there (before: an
+    invalid B-rep, BrepError).  The intervals' eps -> 0 limit keeps a patch of no parametric
+    width spanning the two curves, which this version does not build: UnsupportedError naming
+    the user's zero edge and the two creases.  One crease beside the strip is the eps limit."""
+    mesh = topo.mesh
+    quad = mesh.face_sizes == 4
+    base = mesh.face_offsets[:-1]
+    spans = face_spans(topo)
+    zero_u = np.flatnonzero(quad & (spans[:, 0] == 0) & (spans[:, 1] > 0))
+    zero_v = np.flatnonzero(quad & (spans[:, 1] == 0) & (spans[:, 0] > 0))
+    if zero_u.size + zero_v.size == 0:
+        return
+    e = topo.edge_of
+    # zero in u: the long sides h1 and h3 collapse onto one edge; zero in v: h0 and h2
+    links = np.concatenate([base[zero_u] + 1, base[zero_v]]), np.concatenate([base[zero_u] + 3, base[zero_v] + 2])
+    graph = sp.coo_matrix((np.ones(links[0].size), (e[links[0]], e[links[1]])), shape=(topo.n_edges,) * 2)
+    edge_class = connected_components(graph, directed=False)[1]
+    creased = np.flatnonzero(sharp_edges(topo) & ~topo.edge_is_boundary)
+    classes, first, count = np.unique(edge_class[creased], return_index=True, return_counts=True)
+    if not (count > 1).any():
+        return
+    k = int(np.flatnonzero(count > 1)[0])
+    c1 = int(creased[first[k]])
+    c2 = int(creased[edge_class[creased] == classes[k]][1])
+    faces = np.concatenate([zero_u, zero_v])
+    f = int(faces[edge_class[e[links[0]]] == classes[k]][0])
+    h = int(base[f] + (0 if f in set(zero_u.tolist()) else 1))  # an edge of the zero interval
+    a, b = int(topo.origin[h]), int(topo.dest[h])
+    (p, q), (r, t) = (tuple(int(x) for x in topo.edges[c]) for c in (c1, c2))
+    raise UnsupportedError(
+        f"knot interval 0 on edge {a}-{b} between the infinitely sharp creases {p}-{q} and {r}-{t}: "
+        "the zero strip would tear the surface between the two crease curves (not supported yet)",
+        mesh.where("interval", (min(a, b), max(a, b))),
+    )
 
 
 def _refuse_degenerate_eps(topo: Topology, eps: np.ndarray) -> None:

@@ -202,3 +202,29 @@ def test_huge_coordinates_are_refused_in_one_line_naming_the_vertex(tmp_path):
     data = np.fromfile(tmp_path / "big.stl", dtype=np.uint8)[84:].tobytes()
     record = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
     assert np.isfinite(np.frombuffer(data, dtype=record)["corners"]).all()
+
+
+def test_a_zero_strip_between_two_sharp_creases_is_refused_in_one_line():
+    """Found by fuzzing: on a 5 x 4 torus, a zero strip (edge 0-3) between two infinitely sharp
+    rings built patches on either side that end on two different crease curves while the B-rep
+    joins them across the collapsed strip: BRepCheck_Analyzer rejected it (BrepError, exit 1),
+    packed or not.  Two zero strips in a row between two rings likewise.  One ring beside the
+    strip stays a valid solid."""
+    import pytest
+
+    from export import to_shape
+    from patching.primitives import torus_grid
+
+    base = torus_grid(5, 4)  # vertex (i, j) is 4 i + j
+    def ring(j):
+        return {tuple(sorted((4 * i + j, 4 * ((i + 1) % 5) + j))): 10.0 for i in range(5)}
+
+    def torus(intervals, creases):
+        return patching.from_arrays(base.vertices, base.quads(), intervals=intervals, creases=creases)
+
+    for intervals, creases in [({(0, 3): 0.0}, {**ring(0), **ring(3)}), ({(0, 3): 0.0, (2, 3): 0.0}, {**ring(0), **ring(2)})]:
+        with pytest.raises(patching.UnsupportedError, match="between the infinitely sharp creases") as info:
+            patching.build(torus(intervals, creases))
+        assert "\n" not in str(info.value) and "interval" in info.value.where
+    for creases in (ring(0), ring(3)):
+        assert not to_shape(patching.build(torus({(0, 3): 0.0}, creases))).IsNull()
