@@ -59,7 +59,7 @@ from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
     "BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
-    "refuse_no_volume", "refuse_round_off",
+    "refuse_no_volume", "refuse_round_off", "shape_face_rows",
 ]
 
 #: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
@@ -436,6 +436,13 @@ def patch_components(topo) -> tuple[np.ndarray, np.ndarray]:
     open_row[rows[topo.edge_use_count[pieces.edge] < 2]] = True
     closed = np.bincount(label, weights=open_row, minlength=label.max() + 1 if p else 0) == 0
     return label.ravel(), closed
+
+
+def shape_face_rows(topo) -> np.ndarray:
+    """(p,) the patch row of each face of ``to_shape``'s result, in ``TopExp.MapShapes``
+    order: ``assemble`` adds the faces component by component, rows ascending within each, so
+    one component keeps the row order and several interleave it."""
+    return np.argsort(patch_components(topo)[0], kind="stable")
 
 
 def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=None) -> TopoDS_Shape:

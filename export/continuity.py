@@ -28,7 +28,8 @@ Every shared edge is then classified (the per-edge G0/G1 table, ``ContinuityRepo
 Samples where a normal vanishes (a degenerate corner) give no angle.  An edge with one face
 is a free edge; an edge used twice by one face (a seam) is compared with itself across the
 seam.  Edge and face indices are 0-based positions in ``TopExp.MapShapes`` order; for a shape
-from ``export.brep.to_shape`` the face index is the patch row.
+from ``export.brep.to_shape`` the face index is the patch row when the surface is connected
+(several components come one after the other: ``export.brep.shape_face_rows``).
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ class ContinuityReport:
     over the non-sharp ones only (what a creased model's test asserts); n_g1 + n_g0 + n_open
     + n_sharp = the number of shared edge pairs.  ``edges`` is the whole per-edge table
     (every shared edge) when asked for with ``all_edges=True``, else empty.  Face indices are
-    positions in ``TopExp.MapShapes`` order (patch rows for ``to_shape``), or the ids given as
+    positions in ``TopExp.MapShapes`` order (``export.brep.shape_face_rows``), or the ids given as
     ``face_ids`` (mesh faces when checking a ``BezierSurface``).
     """
 
@@ -284,10 +285,11 @@ def check_continuity(
     from patching.surface import BezierSurface
 
     if isinstance(shape_or_path, BezierSurface):
-        from export.brep import to_shape
+        from export.brep import shape_face_rows, to_shape
 
         if face_ids is None:
-            face_ids = [face for _, _, face, _ in shape_or_path.patches()]
+            row_face = [face for _, _, face, _ in shape_or_path.patches()]
+            face_ids = [row_face[r] for r in shape_face_rows(shape_or_path.topology).tolist()]
         shape = to_shape(shape_or_path, check=False)
     elif isinstance(shape_or_path, (str, os.PathLike)):
         from export.step import read_step

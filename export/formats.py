@@ -111,7 +111,7 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     from OCP.TopoDS import TopoDS
     from OCP.TopTools import TopTools_IndexedMapOfShape
 
-    from .brep import to_shape
+    from .brep import shape_face_rows, to_shape
 
     if shape is None:
         shape = to_shape(surface)
@@ -128,15 +128,19 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     uv_parts, patch_parts, tri_parts, occ_first = [], [], [], []
     base = 0
     location = TopLoc_Location()
-    for row in range(faces.Extent()):
-        face = TopoDS.Face_s(faces.FindKey(row + 1))
+    rows = shape_face_rows(surface.topology).tolist()  # the patch row of each face
+    reversed_row = np.zeros(surface.n_patches, dtype=bool)
+    for k, row in enumerate(rows):
+        face = TopoDS.Face_s(faces.FindKey(k + 1))
         poly = BRep_Tool.Triangulation_s(face, location)
         if poly is None:
             raise RuntimeError(f"no triangulation for patch {row}")
         n_nodes, n_tris = poly.NbNodes(), poly.NbTriangles()
         uv = np.array([poly.UVNode(i).Coord() for i in range(1, n_nodes + 1)])
         tris = np.array([poly.Triangle(i).Get() for i in range(1, n_tris + 1)], dtype=np.int64) - 1
-        if face.Orientation() == TopAbs_REVERSED:
+        # Outward normals: the solid's faces may be REVERSED as a whole (to_shape's orientation fix).
+        reversed_row[row] = face.Orientation() == TopAbs_REVERSED
+        if reversed_row[row]:
             tris = tris[:, ::-1]
         occ_first.append(poly.Node(1).Coord())
         uv_parts.append(uv)
@@ -146,14 +150,12 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     uv = np.concatenate(uv_parts)
     patch = np.concatenate(patch_parts)
     points, normals = _evaluate(surface, patch, uv)
-    # The face of row k must be patch k: its first node is where the patch puts it.
+    # The face taken for row k must be patch k: its first node is where the patch puts it.
     firsts = np.cumsum([0] + [len(p) for p in patch_parts[:-1]])
     gap = np.linalg.norm(points[firsts] - np.array(occ_first), axis=1).max()
     if gap > 1e-9 * max(surface.size, 1.0):
         raise RuntimeError(f"tessellation nodes are {gap:.3g} off the patches: faces and patches disagree")
-    # Outward normals: the solid's faces may be REVERSED as a whole (to_shape's orientation fix).
-    orientation = np.array([TopoDS.Face_s(faces.FindKey(r + 1)).Orientation() == TopAbs_REVERSED for r in range(faces.Extent())])
-    normals[orientation[patch]] *= -1.0
+    normals[reversed_row[patch]] *= -1.0
     return Tessellation(points, normals, uv, patch, np.concatenate(tri_parts), float(tolerance))
 
 

@@ -228,3 +228,32 @@ def test_a_tiny_mesh_tessellates_and_a_tolerance_below_occs_precision_is_refused
             write(surface, tmp_path / "bad.stl", tolerance=tolerance)
         assert "\n" not in str(info.value)
     assert not (tmp_path / "bad.stl").exists()
+
+
+def test_two_components_tessellate_with_outward_normals(tmp_path):
+    """Found by fuzzing: a mesh of two frames (bicubic and bi-quintic patches, so the patch rows
+    of the two components interleave) built a valid compound of two solids, but its faces come
+    component by component and STL, glTF and OBJ stopped with an internal error (RuntimeError:
+    tessellation nodes are 19.3 off the patches); check_continuity named other mesh faces than
+    the ones meeting at an edge."""
+    from patching.primitives import polycube
+
+    frame = polycube([(x, y, 0) for x in range(3) for y in range(3) if (x, y) != (1, 1)], 1)
+    faces = frame.quads()
+    pair = patching.from_arrays(np.vstack([frame.vertices, frame.vertices + 10.0]), np.vstack([faces, faces + frame.n_vertices]))
+    surface = patching.build(pair)
+    assert len({g.degree for g in surface.groups}) == 2
+    t = tessellate(surface)
+    assert sorted(set(t.patch.tolist())) == list(range(surface.n_patches))
+    corners = t.points[t.triangles]
+    facet = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    assert (np.einsum("ij,ij->i", facet, t.normals[t.triangles].mean(axis=1)) > 0).all()
+    for fmt in TESSELLATED:
+        assert write(surface, tmp_path / f"pair.{fmt}").stat().st_size > 0
+    # check_continuity names mesh faces: both faces of every shared edge share a mesh edge
+    from export import check_continuity
+
+    edges = {frozenset(map(int, e)) for f in range(pair.n_faces) for e in zip(pair.face(f), np.roll(pair.face(f), -1))}
+    sides = [{frozenset(map(int, e)) for e in zip(pair.face(f), np.roll(pair.face(f), -1))} for f in range(pair.n_faces)]
+    report = check_continuity(surface, all_edges=True)
+    assert report.edges and all(sides[a] & sides[b] & edges for a, b in (d.faces for d in report.edges))
