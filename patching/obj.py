@@ -41,7 +41,7 @@ def read_obj(path: str | os.PathLike) -> ControlMesh:
     if b"\0" in data[:65536]:
         raise InputFileError("not an OBJ file (binary data)", where)
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")  # a byte-order mark (Windows editors) is no statement
     except UnicodeDecodeError as exc:
         raise InputFileError(f"not an OBJ file (not UTF-8 text at byte {exc.start})", where) from None
     if text.lstrip().startswith("ISO-10303-21"):

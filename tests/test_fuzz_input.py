@@ -228,3 +228,14 @@ def test_a_zero_strip_between_two_sharp_creases_is_refused_in_one_line():
         assert "\n" not in str(info.value) and "interval" in info.value.where
     for creases in (ring(0), ring(3)):
         assert not to_shape(patching.build(torus({(0, 3): 0.0}, creases))).IsNull()
+
+
+def test_an_obj_file_with_a_byte_order_mark_reads(tmp_path):
+    """Found by fuzzing: a UTF-8 byte-order mark before the first line (Windows editors write
+    one) was refused as "not an OBJ statement: '\\ufeffv'" (exit 2) for a valid mesh."""
+    text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    path = tmp_path / "bom.obj"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    mesh = patching.read_mesh(path)
+    assert mesh.n_vertices == 4 and mesh.n_faces == 1
+    assert np.array_equal(mesh.vertices, parse_obj(text).vertices)
