@@ -308,7 +308,9 @@ def refuse_round_off(surface: BezierSurface) -> None:
 
 def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> None:
     """A patch side whose boundary curve has no length (all its poles within the tolerance)
-    is degenerate geometry from the control points: refused naming the mesh face (exit 2)."""
+    is degenerate geometry from the control points, or from a knot interval so small against
+    its neighbours' that the patch is thinner than the tolerance (1e-9 beside 1: not a zero
+    interval, which gives no patch): refused naming the mesh face (exit 2)."""
     for group in surface.groups:
         nets = np.asarray(group.coefficients)
         sides = (nets[:, :, 0], nets[:, -1, :], nets[:, :, -1], nets[:, 0, :])  # (k, d+1, 3) each
@@ -319,7 +321,7 @@ def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> Non
             face = int(group.faces[k])
             raise MeshError(
                 f"degenerate geometry: side {side} of the patch on face {face} has no length "
-                "(its control points coincide)",
+                "(its control points coincide, or its knot interval is tiny against its neighbours')",
                 f"face {face}",
             )
 

@@ -239,3 +239,22 @@ def test_an_obj_file_with_a_byte_order_mark_reads(tmp_path):
     mesh = patching.read_mesh(path)
     assert mesh.n_vertices == 4 and mesh.n_faces == 1
     assert np.array_equal(mesh.vertices, parse_obj(text).vertices)
+
+
+def test_a_tiny_knot_interval_is_named_as_a_cause_of_a_degenerate_patch():
+    """Found by fuzzing: an open grid with interval 1e-9 on one strip (1 elsewhere) was refused
+    as 'side 1 of the patch on face 0 has no length (its control points coincide)', which
+    they do not: the patches on the strip are thinner than the tolerance.  0 builds (a
+    multiple knot, no patch on the strip)."""
+    import pytest
+
+    from export import to_shape
+    from patching.primitives import open_grid
+
+    grid = open_grid(4, 3)
+    for value in (1e-9, 1e-300):
+        mesh = patching.from_arrays(grid.vertices, grid.quads(), intervals={(6, 7): value})
+        with pytest.raises(patching.MeshError, match="knot interval is tiny") as info:
+            to_shape(patching.build(mesh))
+        assert "\n" not in str(info.value)
+    assert not to_shape(patching.build(patching.from_arrays(grid.vertices, grid.quads(), intervals={(6, 7): 0.0}))).IsNull()
