@@ -258,3 +258,23 @@ def test_a_tiny_knot_interval_is_named_as_a_cause_of_a_degenerate_patch():
             to_shape(patching.build(mesh))
         assert "\n" not in str(info.value)
     assert not to_shape(patching.build(patching.from_arrays(grid.vertices, grid.quads(), intervals={(6, 7): 0.0}))).IsNull()
+
+
+def test_too_many_subdivision_steps_are_refused_before_any_work():
+    """Found by fuzzing: `nupatch subdivide cube.obj -n 40` ran out of memory and was killed
+    (exit 137, no error line).  Steps past MAX_SUBDIVIDE_FACES are refused in one line."""
+    import pytest
+
+    from patching.subdivision import MAX_SUBDIVIDE_FACES, subdivide
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    cube = quad_mesh_with_eps("cube")
+    with pytest.raises(patching.UnsupportedError, match="take fewer steps") as info:
+        subdivide(cube, 40)
+    assert "\n" not in str(info.value)
+    steps = 1  # the most steps within the limit
+    while cube.n_faces * 4 ** (steps + 1) <= MAX_SUBDIVIDE_FACES:
+        steps += 1
+    with pytest.raises(patching.UnsupportedError, match="take fewer steps"):
+        subdivide(cube, steps + 1)
+    assert subdivide(cube, 2).n_faces == cube.n_faces * 16
