@@ -124,6 +124,7 @@ def build_operator(
         # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
         # 2^k zero strips where the surface is the input's (_refuse_torn_knots).
         _refuse_torn_knots(topo)
+        _refuse_tiny_intervals(topo)
         _refuse_zero_strips_between_creases(topo)
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
@@ -352,6 +353,31 @@ def _refuse_torn_knots(topo: Topology) -> None:
                 "knot of multiplicity 4 tears the surface",
                 mesh.where("interval", (min(a, b), max(a, b))),
             )
+
+
+#: Smallest nonzero knot interval, relative to the largest: the patches of a strip that much
+#: narrower than the others are far thinner than the B-rep tolerance (1e-7 of the size), and
+#: from about 1e-300 their coefficients overflow (inf, nan).
+TINY_INTERVAL_RATIO = 1e-12
+
+
+def _refuse_tiny_intervals(topo: Topology) -> None:
+    """KnotError naming the user's tag when a nonzero interval is below TINY_INTERVAL_RATIO of
+    the largest (0 is the multiple knot the user may have meant)."""
+    iv = topo.halfedge_interval
+    positive = iv[iv > 0]
+    if positive.size == 0 or positive.min() >= TINY_INTERVAL_RATIO * positive.max():
+        return
+    d, largest = float(positive.min()), float(positive.max())
+    mesh = topo.mesh
+    tagged = [key for key, value in mesh.intervals.items() if value == d]
+    h = int(np.flatnonzero(iv == d)[0])
+    key = tagged[0] if tagged else tuple(sorted((int(topo.origin[h]), int(topo.dest[h]))))
+    raise KnotError(
+        f"knot interval {d:.3g} of edge {key[0]}-{key[1]} is below {TINY_INTERVAL_RATIO:g} of the largest ({largest:.3g}): "
+        "its patches would be thinner than the tolerance; give 0 for a multiple knot",
+        mesh.where("interval", key),
+    )
 
 
 def _refuse_zero_strips_between_creases(topo: Topology) -> None:

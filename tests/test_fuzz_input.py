@@ -252,7 +252,7 @@ def test_a_tiny_knot_interval_is_named_as_a_cause_of_a_degenerate_patch():
     from patching.primitives import open_grid
 
     grid = open_grid(4, 3)
-    for value in (1e-9, 1e-300):
+    for value in (1e-9, 1e-11):
         mesh = patching.from_arrays(grid.vertices, grid.quads(), intervals={(6, 7): value})
         with pytest.raises(patching.MeshError, match="knot interval is tiny") as info:
             to_shape(patching.build(mesh))
@@ -278,3 +278,24 @@ def test_too_many_subdivision_steps_are_refused_before_any_work():
     with pytest.raises(patching.UnsupportedError, match="take fewer steps"):
         subdivide(cube, steps + 1)
     assert subdivide(cube, 2).n_faces == cube.n_faces * 16
+
+
+def test_a_knot_interval_below_1e_12_of_the_largest_is_refused_naming_its_tag():
+    """Found by fuzzing: the L polycube with interval 5e-324 on one strip (a hole and other
+    tags beside) gave non-finite patch coefficients and an internal error (BrepError, exit 1);
+    1e-300 on a grid was refused as a degenerate patch side.  Both name the interval now."""
+    import pytest
+
+    from patching.primitives import open_grid, polycube
+
+    grid = open_grid(4, 3)
+    ell = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1)
+    for base, edge in ((grid, (6, 7)), (ell, (3, 9))):
+        for value in (1e-300, 5e-324, 1e-13):
+            text = "\n".join(f"v {x!r} {y!r} {z!r}" for x, y, z in base.vertices.tolist())
+            text += "\n" + "\n".join("f " + " ".join(str(v + 1) for v in base.face(f)) for f in range(base.n_faces))
+            text += f"\nt interval 2/1/0 {edge[0]} {edge[1]} {value!r}\n"
+            mesh = parse_obj(text, source="tiny.obj")
+            with pytest.raises(patching.KnotError, match=f"edge {edge[0]}-{edge[1]} is below 1e-12") as info:
+                patching.build(mesh)
+            assert str(info.value).endswith(f"(tiny.obj:{len(base.vertices) + base.n_faces + 1})")
