@@ -17,12 +17,14 @@ from pathlib import Path
 
 import patching
 from patching.atomic import check_output_path
+from patching.angle_configuration import MODES
 from patching.errors import InputFileError, NupatchError
+from patching.operator import ANCHOR_RULES
 
 __all__ = ["main"]
 
-ANGLES = ("optimized", "default", "uniform")
-ANCHORS = ("eigen-polyhedron", "extraction")
+ANGLES = MODES
+ANCHORS = ANCHOR_RULES
 #: export.continuity's defaults, repeated so that parsing the command line does not import
 #: OpenCASCADE (1.5 s); tests/test_continuity_table.py checks that they agree.
 CHECK_DEFAULTS = {"worst": 5, "sharp_angle_deg": 10.0, "g1_tolerance_deg": 1e-5}

@@ -225,14 +225,15 @@ def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
     mesh = tmp_path / "ell.obj"
     write_obj(ell_mesh(), mesh)
     outputs = {}
-    for options in ((), ("--angles", "optimized", "--anchors", "eigen-polyhedron"), ("--angles", "uniform"), ("--anchors", "extraction")):
+    choices = (("--angles", "uniform"), ("--anchors", "extraction"), ("--anchors", "faired"))
+    for options in ((), ("--angles", "optimized", "--anchors", "eigen-polyhedron")) + choices:
         out = tmp_path / f"ell{len(outputs)}.brep"  # BREP: no time stamp, so equal builds give equal files
         result = run_cli("build", mesh, "-o", out, "-q", *options)
         assert result.returncode == 0, result.stderr
         outputs[options] = out.read_bytes()
-    defaults, explicit, uniform, extraction = outputs.values()
+    defaults, explicit, *others = outputs.values()
     assert defaults == explicit
-    assert len({defaults, uniform, extraction}) == 3
+    assert len({defaults, *others}) == 1 + len(choices)  # every rule the README names is taken
 
 
 # --- issue 5: several meshes in parallel, progress ------------------------------------------
