@@ -1,11 +1,11 @@
 """Fold census (issue 6): how often the surface folds over itself on OpenSubdiv's catmark shapes
 with random strip intervals, and where.
 
-    .venv/bin/python benchmarks/folds.py [--ratios 5 20] [--seeds 4] [--samples 17]
+    .venv/bin/python benchmarks/folds.py [--ratios 5 20] [--seeds 4] [--samples 17] [--g1-solve joint seed]
 
 For every shape of ../shared/opensubdiv-shapes (tags kept) and every ratio R, ``--seeds``
 draws of strip intervals uniform in [1, R] (``tests.test_g1_patches.with_random_intervals``,
-seeds 0, 1, ...) are built with the default rules, and ``evaluation.normal_turning`` finds the
+seeds 0, 1, ...) are built with the default rules (and each ``--g1-solve`` given), and ``evaluation.normal_turning`` finds the
 patches whose normal turns back inside them (smallest cosine between neighbouring samples < 0).
 Folded patches are split by degree:
 
@@ -46,7 +46,7 @@ def folded_by_degree(surface: patching.BezierSurface, samples: int) -> dict[int,
     return out
 
 
-def census(ratio: float, seeds: int, samples: int) -> None:
+def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint") -> None:
     builds = refused = folding = 0
     patches = {3: 0, 5: 0}
     folded = {3: 0, 5: 0}
@@ -56,7 +56,7 @@ def census(ratio: float, seeds: int, samples: int) -> None:
         for seed in range(seeds):
             try:
                 mesh = with_random_intervals(patching.read_mesh(path), ratio, seed=seed)
-                surface = patching.build(mesh)
+                surface = patching.build(mesh, g1_solve=g1_solve)
             except NupatchError:
                 refused += 1
                 row.append("refused")
@@ -72,7 +72,7 @@ def census(ratio: float, seeds: int, samples: int) -> None:
         if any(r not in ("refused", "0+0") for r in row):
             print(f"  {path.stem:32s} folded bicubic+quintic per seed: {', '.join(row)}")
     print(
-        f"ratio {ratio:g}: {builds} builds ({refused} refused), {folding} with a fold; folded patches: "
+        f"{g1_solve}, ratio {ratio:g}: {builds} builds ({refused} refused), {folding} with a fold; folded patches: "
         f"bicubic {folded[3]} of {patches[3]}, bi-quintic {folded[5]} of {patches[5]} "
         f"({time.perf_counter() - start:.0f} s)"
     )
@@ -83,12 +83,14 @@ def main() -> None:
     parser.add_argument("--ratios", type=float, nargs="+", default=[5.0, 20.0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--samples", type=int, default=17)
+    parser.add_argument("--g1-solve", nargs="+", default=["joint"], choices=patching.G1_SOLVES)
     args = parser.parse_args()
     if not shape_files("catmark_"):
         sys.exit("../shared/opensubdiv-shapes is absent")
     warnings.simplefilter("ignore")
-    for ratio in args.ratios:
-        census(ratio, args.seeds, args.samples)
+    for g1_solve in args.g1_solve:
+        for ratio in args.ratios:
+            census(ratio, args.seeds, args.samples, g1_solve)
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ import patching
 from patching.atomic import check_output_path
 from patching.angle_configuration import MODES
 from patching.errors import InputFileError, NupatchError
-from patching.operator import ANCHOR_RULES
+from patching.operator import ANCHOR_RULES, G1_SOLVES
 
 __all__ = ["main"]
 
@@ -97,6 +97,7 @@ class BuildJob:
     angles: str
     anchors: str
     pack: bool = False
+    g1_solve: str = "joint"
 
 
 #: Formats that carry the exact B-rep, so that --pack applies to them.
@@ -114,7 +115,7 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
     stage(STAGES[0])
     mesh = patching.read_mesh(job.mesh)
     stage(STAGES[1])
-    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors)
+    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors, g1_solve=job.g1_solve)
     stage(STAGES[2])
     if job.pack and job.fmt in EXACT_FORMATS:
         from export.pack import patch_spans, to_packed_shape
@@ -189,7 +190,7 @@ def _jobs(args: argparse.Namespace) -> list[BuildJob]:
         seen[out.resolve()] = name
         fmt = format_of(out, args.format)
         check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack))
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack, args.g1_solve))
     return jobs
 
 
@@ -386,7 +387,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         from export.brep import to_shape
 
         mesh = patching.read_mesh(source)
-        surface = patching.build(mesh, angles=args.angles, anchors=args.anchors)
+        surface = patching.build(mesh, angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
         shape = to_shape(surface)
         lines = None
         if args.mesh:
@@ -453,6 +454,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--angles", choices=ANGLES, default="optimized", help="angle configuration at extraordinary points (default: optimized)")
     p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="rule for the auxiliary anchors at extraordinary points (default: eigen-polyhedron)")
     p.add_argument(
+        "--g1-solve", choices=G1_SOLVES, default="joint",
+        help="joint: one fairing solve per cluster of adjacent extraordinary points (default); seed: seed 002's per-point steps",
+    )
+    p.add_argument(
         "--pack", action="store_true",
         help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
     )
@@ -510,6 +515,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="VTK off-screen, or matplotlib Agg (auto: VTK, matplotlib if VTK has no context)")
     p.add_argument("--angles", choices=ANGLES, default="optimized", help="as for build")
     p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="as for build")
+    p.add_argument("--g1-solve", choices=G1_SOLVES, default="joint", help="as for build")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_render)
     return parser

@@ -17,7 +17,7 @@ from .errors import (
 from .mesh import ControlMesh, NupatchWarning, from_arrays
 from .obj import read_obj as read_mesh
 from .obj import write_obj
-from .operator import ANCHOR_RULES, INTERIOR_RULES, SurfaceOperator, build, build_operator
+from .operator import ANCHOR_RULES, G1_SOLVES, INTERIOR_RULES, SurfaceOperator, build, build_operator
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
@@ -34,6 +34,7 @@ __version__ = "0.1.0"
 __all__ = [
     "ANCHOR_RULES",
     "INTERIOR_RULES",
+    "G1_SOLVES",
     "BezierSurface",
     "ControlMesh",
     "InputFileError",

@@ -301,6 +301,7 @@ def adaptive_operator(
     anchors: str = "eigen-polyhedron",
     keep_levels: bool = False,
     interior: str = "extraction",
+    g1_solve: str = "joint",
 ) -> AdaptivePatches | tuple[AdaptivePatches, list[_Level]]:
     """The adaptive patches of ``mesh`` (module docstring): leaves refined near seeds only.
 
@@ -359,7 +360,7 @@ def adaptive_operator(
             chosen = _unpinch(topo, _grow(inc, leaves, PATCH_MARGIN))
             sub, fid, vid, _ = _submesh(lev.mesh, topo, chosen, clear_semi_sharp=True)
             n_patch_faces = sub.n_faces
-            op = build_operator(sub, angles=angles, anchors=anchors, interior=interior, _refined=True)
+            op = build_operator(sub, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, _refined=True)
             on_points = lev.rows[vid]
             for g in op.groups:
                 window_face = fid[g.faces]

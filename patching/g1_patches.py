@@ -52,7 +52,8 @@ rule along its row and along its column: P[p,q] = 1/2 f_q(P[p,0], P[p,1], P[p,4]
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -449,6 +450,16 @@ class G1Assembly:
             self.beta0.append(b0)
         self.beta1 = [np.where(g.far >= 0, beta0[topo.twin[g.h]], np.nan) for g in groups]
 
+    def without(self, inside: list[np.ndarray]) -> "G1Assembly":
+        """The same assembly over the EPs not marked in ``inside`` ((E,) bool per group); groups
+        left empty are dropped."""
+        out = copy.copy(self)
+        keep = [(k, ~m) for k, m in enumerate(inside) if (~m).any()]
+        out.groups = [_subset(self.groups[k], m) for k, m in keep]
+        out.beta0 = [self.beta0[k][m] for k, m in keep]
+        out.beta1 = [self.beta1[k][m] for k, m in keep]
+        return out
+
     def rows(self, g: EPGroup, patch: np.ndarray | int, j: int, m: int) -> np.ndarray:
         """(E,) rows of local (j, m) of patch i (mod n) of every EP of the group."""
         i = np.asarray(patch) % g.n
@@ -535,6 +546,12 @@ class G1Assembly:
         src = base[:, None] + np.arange(36)[None, :]
         tgt = base[:, None] + np.array([6 * 2 + 2, 6 * 3 + 2, 6 * 2 + 3, 6 * 3 + 3])[None, :]
         mixer.set(tgt, src, blue_weights())
+
+
+def _subset(g: EPGroup, keep: np.ndarray) -> EPGroup:
+    """The EPs ``keep`` of a group."""
+    per_ep = ("vertices", "h", "d", "faces", "corner", "far", "far_spoke")
+    return replace(g, **{name: getattr(g, name)[keep] for name in per_ep})
 
 
 def _sector_beta(g: EPGroup) -> np.ndarray:

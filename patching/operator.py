@@ -22,6 +22,7 @@ from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
 from .bezier_extraction import cubic_extraction, regular_face_points
+from .cluster_fairing import ClusterFairing, ep_clusters
 from .errors import KnotError, MeshError, UnsupportedError
 from .features import Features, faces_without_surface, features, refuse_singular_rings, sharp_edges
 from .g1_patches import G1Assembly, RowMixer, ep_groups
@@ -31,12 +32,14 @@ from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
-__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES", "INTERIOR_RULES"]
+__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES", "INTERIOR_RULES", "G1_SOLVES"]
 
 #: Placements of the auxiliary control points (``build_operator(anchors=...)``).
 ANCHOR_RULES = ("eigen-polyhedron", "extraction", "faired")
 #: Rules for the four inner ("blue") coefficients of a quintic patch (``build_operator(interior=...)``).
 INTERIOR_RULES = ("extraction", "cubic-isocurves")
+#: How the G1 unknowns are set (``build_operator(g1_solve=...)``).
+G1_SOLVES = ("joint", "seed")
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,7 @@ def build_operator(
     force_extraordinary: Sequence[int] = (),
     anchors: str = "eigen-polyhedron",
     interior: str = "extraction",
+    g1_solve: str = "joint",
     *,
     _refined: bool = False,
 ) -> SurfaceOperator:
@@ -112,8 +116,14 @@ def build_operator(
     100.0% and 100.0%, the seed's rule 99.8% and 99.5%.  The surfaces are as fair (thin-plate
     energy 0.81 to 1.03 times the seed rule's on the OpenSubdiv shapes), and the build skips
     a step.
+    g1_solve: "joint" (default) solves the G1 unknowns of every cluster of EPs joined by
+    spokes at once, minimising the thin-plate energy under all the cluster's G1 conditions
+    (``cluster_fairing``: ours, it removes folds the per-EP order makes); "seed" keeps seed
+    002's per-EP and per-spoke steps everywhere.  Isolated EPs get the seed's steps either way.
     topology: the mesh's Topology if already built.
     """
+    if g1_solve not in G1_SOLVES:
+        raise ValueError(f"g1_solve must be one of {G1_SOLVES}, not {g1_solve!r}")
     if anchors not in ANCHOR_RULES:
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     if interior not in INTERIOR_RULES:
@@ -136,7 +146,7 @@ def build_operator(
     # insertion).
     steps, adaptive = _refinement(topo)
     if adaptive:
-        return _adaptive_operator(mesh, angles, anchors, interior)
+        return _adaptive_operator(mesh, angles, anchors, interior, g1_solve)
     if steps:
         from .subdivision import subdivision_operator
 
@@ -145,7 +155,7 @@ def build_operator(
         for _ in range(steps):
             step, refined = subdivision_operator(refined, rules="seed")
             composed = (step @ composed).tocsr()
-        inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior, _refined=True)
+        inner = build_operator(refined, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, _refined=True)
         return SurfaceOperator(product(inner.matrix, composed), inner.groups, inner.topology, mesh.name)
     feats = features(topo)
     spans = face_spans(topo)
@@ -192,7 +202,14 @@ def build_operator(
         # Compose the row mixings first (few entries per row), then apply them once to the
         # elevated rows and the extraction: cheaper than a pass over the longer elevated rows
         # per step (serial, half-EP mesh, where red alone sets most rows: 0.13 s against 0.16 s).
-        g1_steps = (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ())
+        clusters = ep_clusters(groups_ep, topo.n_vertices) if g1_solve == "joint" else []
+        if clusters:
+            fairing = ClusterFairing(g1, clusters)
+            rest = g1.without(fairing.members())
+            g1_steps = (rest.red, rest.black, rest.green, fairing.joint)
+        else:
+            g1_steps = (g1.red, g1.black, g1.green)
+        g1_steps += (g1.blue,) if interior == "cubic-isocurves" else ()
         steps_composed = None
         for solve in g1_steps:
             mixer = RowMixer(n_rows)
@@ -298,7 +315,7 @@ def patched_mesh(mesh: ControlMesh) -> ControlMesh:
     return mesh.with_positions(points) if steps else mesh
 
 
-def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str, interior: str) -> SurfaceOperator:
+def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str, interior: str, g1_solve: str) -> SurfaceOperator:
     """M of the feature-adaptive refinement (``adaptive.adaptive_operator``): rows grouped by
     degree, the patch topology with split sides at the T-junctions (``split_sides``).  A
     patch's face id is its first descendant on the finest level (the ids a global refinement
@@ -306,7 +323,7 @@ def _adaptive_operator(mesh: ControlMesh, angles: str, anchors: str, interior: s
     from .adaptive import adaptive_operator
     from .split_sides import adaptive_layout, split_side_topology
 
-    patches = adaptive_operator(mesh, angles=angles, anchors=anchors, interior=interior)
+    patches = adaptive_operator(mesh, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve)
     order, table = adaptive_layout(patches)
     blocks, groups, offset = [], [], 0
     for d in np.unique(patches.degree[order]).tolist():
@@ -443,13 +460,17 @@ def face_spans(topo: Topology) -> np.ndarray:
 
 
 def build(
-    mesh: ControlMesh, angles: str = "optimized", anchors: str = "eigen-polyhedron", interior: str = "extraction"
+    mesh: ControlMesh,
+    angles: str = "optimized",
+    anchors: str = "eigen-polyhedron",
+    interior: str = "extraction",
+    g1_solve: str = "joint",
 ) -> BezierSurface:
     """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``.
 
     MeshError when no face gives a patch (holes, interpolateboundary 0, zero intervals): an
     empty surface is no solid or shell, and nothing the exporters could write."""
-    surface = build_operator(mesh, angles=angles, anchors=anchors, interior=interior).evaluate(mesh.vertices)
+    surface = build_operator(mesh, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve).evaluate(mesh.vertices)
     if surface.n_patches == 0:
         causes = [f"{len(mesh.holes)} of {mesh.n_faces} faces are holes"] if mesh.holes else []
         if mesh.interpolate_boundary == 0:

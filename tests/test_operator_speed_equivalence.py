@@ -28,10 +28,14 @@ from tests.test_sharp_features import meridian_crease
 RELATIVE = 1e-13
 
 
-def reference_matrix(mesh, angles="optimized", anchors="eigen-polyhedron", force=(), interior="extraction") -> np.ndarray:
-    """Dense M: every irregular face's 16 extraction rows degree-elevated one face at a time,
-    the G1 steps (red, black, green, and blue for interior="cubic-isocurves") applied to those rows in turn (a target row = its weights times the
-    previous step's source rows), the anchors replaced by their rows over control points."""
+def reference_matrix(
+    mesh, angles="optimized", anchors="eigen-polyhedron", force=(), interior="extraction", g1_steps=("red", "black", "green")
+) -> np.ndarray:
+    """Dense M of ``g1_solve="seed"``: every irregular face's 16 extraction rows degree-elevated
+    one face at a time, the G1 steps (red, black, green, and blue for
+    interior="cubic-isocurves") applied to those rows in turn (a target row = its weights times
+    the previous step's source rows), the anchors replaced by their rows over control points.
+    g1_steps=(): the degree-elevated extraction itself."""
     topo = Topology(mesh)
     feats = features(topo)
     spans = face_spans(topo)
@@ -57,7 +61,7 @@ def reference_matrix(mesh, angles="optimized", anchors="eigen-polyhedron", force
     anchor_rows = np.zeros((ext.n_anchors, n))
     if quintic:
         g1 = G1Assembly(topo, groups, face_row, angles)
-        for step in (g1.red, g1.black, g1.green) + ((g1.blue,) if interior == "cubic-isocurves" else ()):
+        for step in [getattr(g1, name) for name in g1_steps] + ([g1.blue] if interior == "cubic-isocurves" else []):
             mixer = RowMixer(rows.shape[0])
             step(mixer)
             new = rows.copy()
@@ -123,13 +127,23 @@ CASES = {
 @pytest.mark.parametrize("case", list(CASES))
 def test_fast_assembly_equals_the_dense_step_by_step_reference(case):
     mesh, options = CASES[case]()
-    op = patching.build_operator(mesh, **options)
+    op = patching.build_operator(mesh, g1_solve="seed", **options)
     expected = reference_matrix(mesh, **options)
     assert op.matrix.shape == expected.shape
     scale = np.abs(expected).max()
     assert np.abs(op.matrix.toarray() - expected).max() <= RELATIVE * scale
     if case != "torus, no EP":
         assert op.groups[-1].degree == 5
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if not c.startswith("cube")])
+def test_joint_solve_changes_nothing_without_adjacent_eps(case):
+    """g1_solve="joint" (the default) only acts on clusters of EPs joined by spokes
+    (``cluster_fairing``): where no two EPs share a spoke, M is the seed's."""
+    mesh, options = CASES[case]()
+    joint = patching.build_operator(mesh, **options).matrix
+    seed = patching.build_operator(mesh, g1_solve="seed", **options).matrix
+    assert abs(joint - seed).max() == 0.0
 
 
 def test_forced_valence_4_ep_equals_the_reference():

@@ -1,0 +1,225 @@
+"""Joint G1 solve for clusters of extraordinary points joined by spokes (ours; issue 6 note).
+
+Seed 002 (section 3.4) sets the G1 unknowns EP by EP and spoke by spoke: red (spoke points,
+face points, P^i[2,0]) nearest to the extraction under G_0, G_1 at one EP; black (P30) from the
+fifth difference; green (A[k,1], B[1,k], k = 2, 3) nearest to the extraction under G_2, G_3.
+Where two EPs share a spoke whose interval is short against its neighbours' while its
+geometric length is not, this order folds the surface (measured, ``benchmarks/folds.py``):
+G_0 at both ends fixes the spoke's legs short, the spoke curve then covers its length between
+r_2 and r_3, and G_2, G_3 fix a weighted average of the cross rows A[k,1], B[1,k] that runs
+backwards by more than half the edge whatever the green step chooses.  The red solves at the
+two ends cannot see each other, so no per-EP rule removes it.
+
+Here every cluster (a connected component, two EPs or more, of the graph of EP-EP spokes
+between smooth closed rings) takes all the coefficients those steps would set, at every EP
+of the cluster, as the unknowns u of one problem:
+
+    min_u  sum_f E(net_f)  +  mu |u - u_hat|^2      subject to  G_0..G_5 of every spoke,
+
+    E(net) = integral over [0,1]^2 of |S_ss|^2 + 2 |S_st|^2 + |S_tt|^2   (thin plate),
+
+f over the patches around the cluster's EPs, u_hat the unknowns' values before this step
+(the degree-elevated extraction), mu = ``MU`` times the mean diagonal of the energy's Hessian
+in u.  P00 (the anchors' vertex point, hence the limit point) and all other coefficients are
+held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the black rule),
+spokes between two EPs G_0..G_5 written in the frame of the lower-numbered end (both frames
+give the same conditions).  The energy is quadratic and the constraints linear in the
+coefficients, so u = K s over the held rows s: a row mixing built from intervals and
+connecting functions only (M never reads positions).  K's rows sum to 1 (constants satisfy the
+constraints with zero energy and zero pull), so affine invariance holds.
+
+The energy is the isotropic thin plate in patch parameters.  Measured against the
+interval-weighted energy of ``anchor_fairing`` (x = delta s, y = eps t) on catmark_lefthanded:
+the same fold counts within noise (34 against 37 folded patches over eight draws of ratio 20,
+none over 21 draws of ratio 5 for both), so the simpler form is used.  mu: 0.1 (0.03 gave the
+same folds, 0.2 and 0.5 more; 0.01 left folds at ratio 5).
+
+Cost: one dense solve per cluster (SVD of the constraints, null space, energy), and every
+unknown row depends on every held row of the cluster, so M's rows there are as long as the
+cluster's stencil.  Clusters above ``MAX_CLUSTER_EPS`` EPs keep the seed's per-EP steps.  On
+meshes refined once or more no two EPs are adjacent, and nothing changes.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .anchor_fairing import thin_plate_matrices
+from .g1_constraints import fifth_difference, spoke_equations
+
+if TYPE_CHECKING:
+    from .g1_patches import EPGroup, G1Assembly, RowMixer
+
+__all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS"]
+
+#: Weight of the pull towards the extraction, relative to the mean diagonal of the energy.
+MU = 0.1
+#: Largest cluster solved jointly; larger ones keep the seed's per-EP steps (module docstring).
+MAX_CLUSTER_EPS = 16
+
+
+def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = None) -> list[np.ndarray]:
+    """Clusters as (m, 2) arrays of (group index, row index), m >= 2: components of the graph
+    of EP-EP spokes with G1 constraints, over EPs with smooth closed rings (no sharp spokes,
+    no boundary, no fixed sector angles).  A component that holds any other EP, or more than
+    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``), is left out (its EPs take the per-EP steps)."""
+    max_eps = MAX_CLUSTER_EPS if max_eps is None else max_eps
+    where = np.full((n_vertices, 2), -1, dtype=np.int64)
+    eligible = np.zeros(n_vertices, dtype=bool)
+    a, b = [], []
+    for k, g in enumerate(groups):
+        where[g.vertices, 0] = k
+        where[g.vertices, 1] = np.arange(len(g.vertices))
+        eligible[g.vertices] = g.theta is None and not g.boundary
+        far = np.where(g.unconstrained[None, :], -1, g.far)
+        e, i = np.nonzero(far >= 0)
+        a.append(g.vertices[e])
+        b.append(far[e, i])
+    a = np.concatenate(a) if a else np.zeros(0, np.int64)
+    b = np.concatenate(b) if b else np.zeros(0, np.int64)
+    graph = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(n_vertices, n_vertices))
+    _, label = connected_components(graph, directed=False)
+    is_ep = where[:, 0] >= 0
+    labels, counts = np.unique(label[is_ep], return_counts=True)
+    bad = np.unique(label[is_ep & ~eligible])
+    out = []
+    for lab, count in zip(labels.tolist(), counts.tolist()):
+        if count < 2 or count > max_eps or lab in bad:
+            continue
+        vs = np.flatnonzero(is_ep & (label == lab))
+        out.append(where[vs])
+    return out
+
+
+class ClusterFairing:
+    """The joint step for the clusters of a ``G1Assembly`` (module docstring)."""
+
+    def __init__(self, g1: "G1Assembly", clusters: list[np.ndarray]) -> None:
+        self.g1 = g1
+        self.clusters = clusters
+        # rows[k][e, i, j, m]: row of local (j, m) of patch i of EP e of group k
+        self._rows = {}
+        for k in {int(k) for c in clusters for k in c[:, 0]}:
+            g = g1.groups[k]
+            self._rows[k] = np.stack(
+                [np.stack([np.stack([g1.rows(g, i, j, m) for m in range(6)], -1) for j in range(6)], -2) for i in range(g.n)],
+                axis=1,
+            )
+
+    def members(self) -> list[np.ndarray]:
+        """(E,) bool per group: the EPs that belong to a cluster."""
+        inside = [np.zeros(len(g.vertices), dtype=bool) for g in self.g1.groups]
+        for c in self.clusters:
+            inside_k = c[:, 0]
+            for k, e in zip(inside_k.tolist(), c[:, 1].tolist()):
+                inside[k][e] = True
+        return inside
+
+    def joint(self, mixer: "RowMixer") -> None:
+        """Set every cluster's unknown rows: new rows = K @ held rows."""
+        for c in self.clusters:
+            targets, sources, weights = self.solve(c)
+            mixer.set(targets, sources, weights)
+
+    def solve(self, cluster: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(targets (T,), sources (S,), weights (T, S)) of one cluster."""
+        g1 = self.g1
+        unknown_rows, merges, faces, equations = [], [], [], []
+        for k, e in cluster.tolist():
+            g = g1.groups[k]
+            r = self._rows[k][e]  # (n, 6, 6)
+            before = np.roll(r, 1, axis=0)  # before[i] = patch i - 1
+            # the spoke i's coefficients are rows of both patches beside it: one unknown each
+            merges.append(np.stack([r[:, :, 0].ravel(), before[:, 0, :].ravel()], axis=1))
+            # spoke points, P20, P30; the face point, A[2,1], A[3,1]; B[1,2], B[1,3]
+            unknown_rows += [r[:, 1:4, 0].ravel(), r[:, 1:4, 1].ravel(), before[:, 1, 2:4].ravel()]
+            faces.append(g.faces[e])
+            keys = g1.spoke_keys(k)[e]
+            v = int(g.vertices[e])
+            for i in range(g.n):
+                far = int(g.far[e, i])
+                if 0 <= far < v:
+                    continue  # set once, from the lower-numbered end
+                slots = np.concatenate([r[i, :, 0], r[i, :, 1], before[i, 1, :]])
+                key = tuple(None if x != x else float(x) for x in keys[i])
+                eq = spoke_equations(*key)
+                if far < 0:
+                    fifth = np.concatenate([fifth_difference, np.zeros(12)])
+                    eq = np.vstack([eq[:4], fifth])
+                equations.append((slots, eq))
+        faces = np.unique(np.concatenate(faces))
+        face_rows = g1.face_row[faces][:, None] + np.arange(36)[None, :]
+        unknown_rows = np.concatenate(unknown_rows)
+        merges = np.concatenate(merges)
+        slot_rows = np.concatenate([s for s, _ in equations])
+        rows, inverse = np.unique(np.concatenate([face_rows.ravel(), unknown_rows, merges.ravel(), slot_rows]), return_inverse=True)
+        local = dict(zip(rows.tolist(), range(rows.size)))  # row -> local index
+        loc = np.vectorize(local.__getitem__, otypes=[np.int64])
+        m = merges.shape[0]
+        link = sp.coo_matrix((np.ones(m), (loc(merges[:, 0]), loc(merges[:, 1]))), shape=(rows.size, rows.size))
+        _, comp = connected_components(link, directed=False)
+        # columns: one per unknown component, then one per held row
+        is_unknown = np.zeros(comp.max() + 1, dtype=bool)
+        is_unknown[comp[loc(unknown_rows)]] = True
+        unknown_comps = np.flatnonzero(is_unknown)
+        nu = unknown_comps.size
+        comp_column = np.full(comp.max() + 1, -1, dtype=np.int64)
+        comp_column[unknown_comps] = np.arange(nu)
+        held = np.flatnonzero(~is_unknown[comp])  # local rows that are sources
+        column = comp_column[comp]
+        column[held] = nu + np.arange(held.size)
+        # an unknown's own value before the step: the first row of its component, as a source
+        first_of_comp = np.unique(comp, return_index=True)[1]
+        pull_rows = first_of_comp[unknown_comps]
+        sources = np.concatenate([rows[held], rows[pull_rows]])
+        ns = sources.size
+        size = nu + ns
+        pull_column = nu + held.size + np.arange(nu)
+        # the thin-plate energy of every patch of the cluster
+        iss, ist, itt = thin_plate_matrices(5)
+        q = iss + 2.0 * ist + itt
+        h = np.zeros((size, size))
+        for cols in column[loc(face_rows)]:
+            h[np.ix_(cols, cols)] += q
+        c = np.zeros((sum(eq.shape[0] for _, eq in equations), size))
+        at = 0
+        for slots, eq in equations:
+            np.add.at(c, (slice(at, at + eq.shape[0]), column[loc(slots)]), eq)
+            at += eq.shape[0]
+        return self._minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources)
+
+    @staticmethod
+    def _minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources):
+        """u = K s minimising u^T H_uu u + 2 u^T H_us s + mu |u - s_pull|^2 under C_u u + C_s s = 0.
+
+        Pivoted QR of C_u^T (G_0 is rank deficient: the tangent plane): C_u^T[:, piv] = Q R, r
+        its rank; u = Q_1 y + Z w with Z = Q[:, r:] the null space of C_u, y from the r
+        independent equations (R_1^T y = -C_s[piv] s, triangular; the dependent ones hold since
+        the per-EP steps show the system solvable for every s), and w minimising the energy on
+        Z (positive definite there: mu > 0)."""
+        huu, hus = h[:nu, :nu], h[:nu, nu:]
+        mu = MU * float(np.mean(np.diag(huu)))
+        ns = h.shape[0] - nu
+        pull = np.zeros((nu, ns))
+        pull[np.arange(nu), pull_column - nu] = 1.0
+        cu, cs = c[:, :nu], c[:, nu:]
+        q, r, piv = sla.qr(cu.T, pivoting=True)
+        diag = np.abs(np.diag(r))
+        rank = int(np.count_nonzero(diag > 1e-11 * diag.max()))
+        y = sla.solve_triangular(r[:rank, :rank].T, -cs[piv[:rank]], lower=True)
+        u0 = q[:, :rank] @ y
+        z = q[:, rank:]
+        a = huu + mu * np.eye(nu)
+        w = np.linalg.solve(z.T @ a @ z, z.T @ (mu * pull - hus - a @ u0))
+        k = u0 + z @ w
+        k[np.abs(k) < 1e-15] = 0.0
+        k[np.arange(nu), pull_column - nu] += 1.0 - k.sum(axis=1)  # rows sum to 1 exactly
+        # every row of a solved component takes the component's solution
+        members = np.flatnonzero(column < nu)
+        targets = rows[members]
+        return targets, sources, k[column[members]]
