@@ -16,7 +16,10 @@ sparse matrix T with new_rows = T @ old_rows (identity outside the rows it sets)
    ``build_operator(interior="cubic-isocurves")``.  By default they keep the extraction's
    values (see ``operator.build_operator``: the seed's rule leaves ripples).
 
-The local frame of an EP and the equations G_k are those of ``g1_constraints``.
+The local frame of an EP and the equations G_k are those of ``g1_constraints``.  EPs joined
+by a spoke to another EP take steps 1-3 jointly instead, one fairing solve per cluster
+(``cluster_fairing``, ``build_operator(g1_solve="joint")``, the default): the per-EP order
+folds patches there that no per-EP rule can avoid.
 
 Reconstruction of the red problem (seed 002 text lost between "with linear constraints," and
 "where M_vA"): minimise sum |D - D_hat|^2 over the differences D of the ring V_0 = P00,
