@@ -277,8 +277,9 @@ MAX_REFINED_FACES = 2_000_000
 #: Under refinement="auto", the most faces the global steps may make before the adaptive path
 #: takes over.  Measured (benchmarks/semi_sharp.py): from about 1,000 global faces on, the
 #: adaptive path always gave fewer patches (1.5x on a 96-face cube with a semi-sharp loop at
-#: s = 2, 5x on a 5 x 4 torus with one crease at s = 3, 32x at s = 5); below, both give
-#: about as many (a 6-face cube at s = 2 or 3: the same 96 or 384) and write in the same time.
+#: s = 2, 5x on a 5 x 4 torus with one crease at s = 3, 32x at s = 5); below, it saves at
+#: most 2.5x (a 6-face cube at s = 2 or 3: the same 96 or 384; the torus at s = 2: 320 against
+#: 152 to 272) and no time to STEP (1.8 to 2.1 s on either path, mostly OCC's fixed cost).
 MAX_AUTO_GLOBAL_FACES = 1024
 
 
