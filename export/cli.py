@@ -115,9 +115,13 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
     stage(STAGES[0])
     mesh = patching.read_mesh(job.mesh)
     stage(STAGES[1])
-    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors, g1_solve=job.g1_solve)
+    pack = job.pack and job.fmt in EXACT_FORMATS
+    # --pack merges the patches of one mesh: semi-sharp tags then take the global steps while
+    # they fit (patching.operator._refinement), as before the adaptive path became the default.
+    refinement = "global" if pack else "auto"
+    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors, refinement=refinement, g1_solve=job.g1_solve)
     stage(STAGES[2])
-    if job.pack and job.fmt in EXACT_FORMATS:
+    if pack:
         from export.pack import patch_spans, to_packed_shape
 
         shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))

@@ -385,8 +385,10 @@ def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
 
     surface.topology.require_whole_sides("--pack")
     # build_operator patches the mesh after its global steps for semi-sharp tags and n-gons
-    # (issue 4): its faces are those.
-    spans = face_spans(Topology(patched_mesh(mesh)))
+    # (issue 4): its faces are those.  A surface without split sides is that mesh's, whichever
+    # refinement built it (an adaptive one whose leaves are all on the finest level has its
+    # faces' ids), so the global steps give its spans.
+    spans = face_spans(Topology(patched_mesh(mesh, refinement="global")))
     faces = np.array([face for _, _, face, _ in surface.patches()], dtype=np.int64)
     if faces.size and faces.max() >= len(spans):
         raise ValueError("the surface's faces are not the mesh's: was it built from this mesh?")

@@ -32,7 +32,7 @@ from .patch_topology import patch_topology
 from .surface import BezierSurface, PatchGroup, PatchTopology
 from .topology import Topology
 
-__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES", "INTERIOR_RULES", "G1_SOLVES"]
+__all__ = ["SurfaceOperator", "build_operator", "build", "patched_mesh", "ANCHOR_RULES", "INTERIOR_RULES", "G1_SOLVES", "REFINEMENTS"]
 
 #: Placements of the auxiliary control points (``build_operator(anchors=...)``).
 ANCHOR_RULES = ("eigen-polyhedron", "extraction", "faired")
@@ -94,6 +94,7 @@ def build_operator(
     interior: str = "extraction",
     g1_solve: str = "joint",
     *,
+    refinement: str = "auto",
     _refined: bool = False,
 ) -> SurfaceOperator:
     """Build M for a closed polygon mesh: bicubic patches on regular faces, G1 bi-quintic
@@ -120,6 +121,12 @@ def build_operator(
     spokes at once, minimising the thin-plate energy under all the cluster's G1 conditions
     (``cluster_fairing``: ours, it removes folds the per-EP order makes); "seed" keeps seed
     002's per-EP and per-spoke steps everywhere.  Isolated EPs get the seed's steps either way.
+    refinement: how semi-sharp tags are refined before patching (``_refinement``): "auto"
+    (default) takes the feature-adaptive path (``adaptive``: the same surface, far fewer
+    patches, T-junctions as split sides) wherever the global steps would make more than
+    MAX_AUTO_GLOBAL_FACES faces and the adaptive path can go; "global" refines the whole mesh
+    while that fits (MAX_SEMI_SHARP_STEPS, MAX_REFINED_FACES), so that the patches cover the
+    faces of one mesh (``patched_mesh``), as ``export.pack`` needs.
     topology: the mesh's Topology if already built.
     """
     if g1_solve not in G1_SOLVES:
@@ -128,6 +135,8 @@ def build_operator(
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     if interior not in INTERIOR_RULES:
         raise ValueError(f"interior must be one of {INTERIOR_RULES}, not {interior!r}")
+    if refinement not in REFINEMENTS:
+        raise ValueError(f"refinement must be one of {REFINEMENTS}, not {refinement!r}")
     topo = topology or Topology(mesh)
     if not _refined:
         # Tears are judged on the user's mesh, before any refinement: refining a zero strip
@@ -139,12 +148,12 @@ def build_operator(
     # Seed 002 patches smooth quads.  Semi-sharp creases and corners (0 < s < 10) first take
     # ceil(s) steps of the sharp subdivision rules, after which every sharpness is 0; non-quad
     # faces take one step, which turns every polygon into quads (issue 4).  Done globally when
-    # the refined mesh is small (the cost of the pre-subdivided mesh), else adaptively
-    # (``adaptive``: refined only near the features, the same surface, patches of several
-    # levels meeting at T-junctions).  M of the refined mesh times the steps' S acts on the
+    # the refined mesh is small, else adaptively (``adaptive``: refined only near the
+    # features, the same surface, patches of several levels meeting at T-junctions;
+    # ``_refinement`` says when).  M of the refined mesh times the steps' S acts on the
     # original control points; regular quad regions keep their surface (a step there is knot
     # insertion).
-    steps, adaptive = _refinement(topo)
+    steps, adaptive = _refinement(topo, refinement)
     if adaptive:
         return _adaptive_operator(mesh, angles, anchors, interior, g1_solve)
     if steps:
@@ -276,10 +285,19 @@ def _sector_anchors(topo: Topology, feats: Features, groups, anchor_column: np.n
     return sp.csr_matrix((points.data, (rows, points.col)), shape=(n_anchors, n_points))
 
 
+#: Ways to refine semi-sharp tags before patching (``build_operator(refinement=...)``).
+REFINEMENTS = ("auto", "global")
 #: Most global subdivision steps (and faces after them) spent on semi-sharp features before
-#: patching; beyond them the refinement is adaptive.
+#: patching; beyond them the refinement is adaptive whatever ``refinement`` says.
 MAX_SEMI_SHARP_STEPS = 6
 MAX_REFINED_FACES = 2_000_000
+#: Under refinement="auto", the most faces the global steps may make before the adaptive path
+#: takes over.  Measured (benchmarks/semi_sharp.py): from about 1,000 global faces on, the
+#: adaptive path always gave fewer patches (1.5x on a 96-face cube with a semi-sharp loop at
+#: s = 2, 5x on a 5 x 4 torus with one crease at s = 3, 32x at s = 5); below, it saves at
+#: most 2.5x (a 6-face cube at s = 2 or 3: the same 96 or 384; the torus at s = 2: 320 against
+#: 152 to 272) and no time to STEP (1.8 to 2.1 s on either path, mostly OCC's fixed cost).
+MAX_AUTO_GLOBAL_FACES = 1024
 
 
 def _semi_sharp_steps(topo: Topology) -> int:
@@ -290,20 +308,34 @@ def _semi_sharp_steps(topo: Topology) -> int:
     return int(np.ceil(semi.max())) if semi.size else 0
 
 
-def _refinement(topo: Topology) -> tuple[int, bool]:
+def _refinement(topo: Topology, refinement: str = "auto") -> tuple[int, bool]:
     """(steps, adaptive): the subdivision steps taken before patching (semi-sharp tags, or one
-    for n-gons), and whether they are too many to take globally (then ``adaptive``)."""
+    for n-gons), and whether they are taken adaptively (``adaptive``) rather than globally.
+
+    Adaptive when the global steps would not fit (more than MAX_SEMI_SHARP_STEPS steps or
+    MAX_REFINED_FACES faces), and under refinement="auto" also when they would make more than
+    MAX_AUTO_GLOBAL_FACES faces, unless the adaptive path cannot go or gains nothing: a zero
+    knot interval anywhere (``adaptive_operator`` refuses them), or no semi-sharp tag (the one
+    step for n-gons refines every face on either path)."""
     mesh = topo.mesh
-    steps = _semi_sharp_steps(topo) or (0 if mesh.is_quad_mesh else 1)
-    return steps, steps > 0 and (steps > MAX_SEMI_SHARP_STEPS or mesh.n_faces * 4**steps > MAX_REFINED_FACES)
+    semi = _semi_sharp_steps(topo)
+    steps = semi or (0 if mesh.is_quad_mesh else 1)
+    faces = mesh.n_faces * 4**steps  # the faces after the global steps (n-gons counted as quads)
+    if steps == 0:
+        return 0, False
+    if steps > MAX_SEMI_SHARP_STEPS or faces > MAX_REFINED_FACES:
+        return steps, True
+    auto = refinement == "auto" and semi > 0 and faces > MAX_AUTO_GLOBAL_FACES
+    return steps, bool(auto and np.all(topo.edge_interval > 0))
 
 
-def patched_mesh(mesh: ControlMesh) -> ControlMesh:
-    """The all-quad mesh whose faces the patches of ``build_operator(mesh)`` cover: the mesh
-    itself, or after the global subdivision steps taken for semi-sharp tags and n-gons (its
-    positions those steps' refinement of the control points).  Refused (UnsupportedError)
-    where the refinement is adaptive: there patches of several levels cover the faces."""
-    steps, adaptive = _refinement(Topology(mesh))
+def patched_mesh(mesh: ControlMesh, refinement: str = "auto") -> ControlMesh:
+    """The all-quad mesh whose faces the patches of ``build_operator(mesh, refinement=...)``
+    cover: the mesh itself, or after the global subdivision steps taken for semi-sharp tags
+    and n-gons (its positions those steps' refinement of the control points).  Refused
+    (UnsupportedError) where the refinement is adaptive: there patches of several levels
+    cover the faces."""
+    steps, adaptive = _refinement(Topology(mesh), refinement)
     if adaptive:
         raise UnsupportedError(f"{mesh.name} is refined adaptively: its patches cover faces of several levels", mesh.name)
     from .subdivision import subdivision_operator
@@ -465,12 +497,17 @@ def build(
     anchors: str = "eigen-polyhedron",
     interior: str = "extraction",
     g1_solve: str = "joint",
+    *,
+    refinement: str = "auto",
 ) -> BezierSurface:
-    """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``.
+    """The patched surface of a mesh: ``build_operator(mesh, ...).evaluate(mesh.vertices)``
+    (refinement="global" for ``export.pack``, which needs the patches of one mesh).
 
     MeshError when no face gives a patch (holes, interpolateboundary 0, zero intervals): an
     empty surface is no solid or shell, and nothing the exporters could write."""
-    surface = build_operator(mesh, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve).evaluate(mesh.vertices)
+    surface = build_operator(
+        mesh, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement
+    ).evaluate(mesh.vertices)
     if surface.n_patches == 0:
         causes = [f"{len(mesh.holes)} of {mesh.n_faces} faces are holes"] if mesh.holes else []
         if mesh.interpolate_boundary == 0:

@@ -129,7 +129,7 @@ def surface_differences(mesh, radius=2):
     """Checks below; returns the largest position and normal differences found."""
     ap = adaptive_operator(mesh, radius=radius)
     n = ap.steps
-    glob = patching.build_operator(mesh)
+    glob = patching.build_operator(mesh, refinement="global")
     size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
     gsurf = glob.evaluate(mesh.vertices)
     gnet = {}

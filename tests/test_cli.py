@@ -415,3 +415,19 @@ def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, run_cl
     refused = tmp_path / "deep.step"
     _assert_refused(run_cli("build", deep, "-o", refused, "--pack"), "--pack needs one edge per patch side")
     assert not refused.exists()
+
+
+def test_pack_keeps_the_global_steps_that_build_leaves_for_the_adaptive_path(tmp_path, run_cli):
+    """Sharpness 3 on a 6 x 5 torus: three global steps would make 30 x 4^3 = 1,920 faces, so
+    build refines adaptively (fewer patches, split sides); --pack, which merges the patches of
+    one mesh, still takes the global steps and packs them, as before (exit 0, not refused)."""
+    from export.cli import BuildJob, run_build
+
+    mesh = tmp_path / "ring.obj"
+    mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 3\n"))
+    plain = run_build(BuildJob(str(mesh), str(tmp_path / "plain.step"), "step", None, "optimized", "eigen-polyhedron"))
+    packed = tmp_path / "packed.step"
+    result = run_cli("build", mesh, "-o", packed, "--pack", "-q")
+    assert result.returncode == 0, result.stderr
+    assert packed.exists() and packed.stat().st_size < (tmp_path / "plain.step").stat().st_size
+    assert plain[1] < 30 * 4**3 // 4  # adaptive: 258 patches

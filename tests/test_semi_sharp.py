@@ -62,3 +62,52 @@ def test_deep_semi_sharp_creases_are_refined_adaptively():
     assert distance_to_cube_edge(surface) < distance_to_cube_edge(patching.build(creased_cube(3.0)))
     report = check_continuity(to_shape(surface))
     assert report.valid and report.n_solids == 1 and report.max_normal_jump_deg <= 1e-6
+
+
+def crease_torus(s: float, intervals=None) -> patching.ControlMesh:
+    """The 5 x 4 torus grid with one semi-sharp edge (0-4, along u): the fuzzed case that
+    wrote 20,480 patches for 20 faces at s = 5 on the global path."""
+    import dataclasses
+
+    from patching.primitives import torus_grid
+
+    return dataclasses.replace(torus_grid(5, 4, intervals, name="ring"), creases={(0, 4): s})
+
+
+def test_a_small_mesh_with_a_sharpness_5_crease_is_refined_adaptively():
+    """Five global steps would make 20 x 4^5 = 20,480 patches (more than
+    MAX_AUTO_GLOBAL_FACES), so build refines adaptively: far fewer patches (632), with
+    T-junctions, pointwise the global construction's surface (test_adaptive's check, against
+    refinement="global"), which "global" still gives in one mesh (what --pack takes)."""
+    from patching.adaptive import adaptive_operator
+    from tests.test_adaptive import TOL, surface_differences
+
+    mesh = crease_torus(5.0)
+    surface = patching.build(mesh)
+    assert surface.topology.has_split_sides
+    assert surface.n_patches == adaptive_operator(mesh).n_patches < 20 * 4**5 // 20
+    _, n_global, worst = surface_differences(mesh)
+    assert n_global == 20 * 4**5 and worst <= TOL
+    whole = patching.build(mesh, refinement="global")
+    assert whole.n_patches == n_global and not whole.topology.has_split_sides
+
+
+def test_the_global_path_stays_where_the_adaptive_one_cannot_go_or_gains_nothing():
+    """Still refined globally (one mesh, no split sides): a zero interval anywhere (the
+    adaptive path refuses them), one step for triangles without semi-sharp tags (it refines
+    every face on either path), and a small refinement (a 6-face cube at s = 3: 384 faces,
+    no more than MAX_AUTO_GLOBAL_FACES)."""
+    from patching.operator import MAX_AUTO_GLOBAL_FACES
+    from patching.primitives import torus_grid
+
+    zero_strip = crease_torus(5.0, intervals=[1, 1, 0, 1, 1])  # the zero strip is 2 edges from the crease
+    split = torus_grid(20, 16)
+    a, b, c, d = (int(x) for x in split.face(0))
+    triangles = patching.from_arrays(split.vertices, [[a, b, c], [a, c, d]] + [list(split.face(f)) for f in range(1, split.n_faces)])
+    assert 4 * triangles.n_faces > MAX_AUTO_GLOBAL_FACES and 6 * 4**3 <= MAX_AUTO_GLOBAL_FACES
+    # (mesh, faces of the globally refined mesh, patches: the zero strip's 4 x 4^5 faces have none)
+    cases = ((zero_strip, 20 * 4**5, 16 * 4**5), (triangles, 4 * (split.n_faces - 1) + 6, None), (creased_cube(3.0), 6 * 4**3, None))
+    for mesh, faces, patches in cases:
+        assert patching.operator.patched_mesh(mesh).n_faces == faces
+        surface = patching.build(mesh)
+        assert not surface.topology.has_split_sides and surface.n_patches == (patches or faces)

@@ -68,8 +68,10 @@ def distance_to_nurbs_far_from_crease(surface, steps, reference, row, col):
 
 def distance_to_eps(surface, intervals, creases, eps):
     """Largest difference of the Bezier nets from those of the mesh whose zero intervals are
-    eps (the same refined faces, face by face; the eps mesh also has the zero strips')."""
-    a, b = nets(surface), nets(patching.build(mesh(with_eps(intervals, eps), creases)))
+    eps (the same refined faces, face by face; the eps mesh also has the zero strips').  The
+    eps mesh has no zero interval, so build would refine it adaptively (beyond 1,024 global
+    faces): its global refinement is asked for, as the zero mesh's is taken."""
+    a, b = nets(surface), nets(patching.build(mesh(with_eps(intervals, eps), creases), refinement="global"))
     assert a.keys() < b.keys()
     return max(float(np.abs(a[f] - b[f]).max()) for f in a)
 
