@@ -21,6 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from .anchor_fairing import faired_anchors
 from .auxiliary_points import anchor_matrix
 from .bernstein import elevation_matrix_2d
+from .blas import one_blas_thread
 from .bezier_extraction import cubic_extraction, regular_face_points
 from .cluster_fairing import ClusterFairing, ep_clusters
 from .errors import KnotError, MeshError, UnsupportedError
@@ -85,6 +86,7 @@ class SurfaceOperator:
         return np.asarray(self.matrix.sum(axis=1)).ravel()
 
 
+@one_blas_thread
 def build_operator(
     mesh: ControlMesh,
     topology: Topology | None = None,

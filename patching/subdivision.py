@@ -127,6 +127,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .blas import one_blas_thread
 from .errors import KnotError, UnsupportedError
 from .mesh import INFINITELY_SHARP, ControlMesh
 from .subdivision_rules import (
@@ -1021,6 +1022,7 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     return replace(child, intervals=intervals)
 
 
+@one_blas_thread
 def subdivision_operator(
     mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
 ) -> tuple[sp.csr_matrix, ControlMesh]:

@@ -51,3 +51,29 @@ def test_blocks_cover_the_rows_once_with_balanced_work():
     assert all(r1 == r0 for (_, r1), (r0, _) in zip(ranges[:-1], ranges[1:]))
     work = [a.indptr[r1] - a.indptr[r0] for r0, r1 in ranges]
     assert max(work) - min(work) <= 2 * 4
+
+
+def blas_threads() -> int:
+    from threadpoolctl import threadpool_info
+
+    return max((i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"), default=1)
+
+
+def test_builds_run_their_small_dense_solves_on_one_blas_thread(monkeypatch):
+    """``blas.one_blas_thread`` around build_operator and subdivision_operator: inside, BLAS
+    has one thread (the local solves run there); after, the caller's limit is back."""
+    from threadpoolctl import threadpool_limits
+
+    import patching
+    from patching import g1_patches, subdivision
+    from tests.test_g1_patches import quad_mesh_with_eps
+
+    seen = []
+    angles = g1_patches.angle_configuration
+    monkeypatch.setattr(g1_patches, "angle_configuration", lambda *a, **k: seen.append(blas_threads()) or angles(*a, **k))
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        patching.build_operator(quad_mesh_with_eps("bipyramid-5"))
+        subdivision.subdivision_operator(quad_mesh_with_eps("cube"))
+        assert blas_threads() == before
+    assert seen and set(seen) == {1}
