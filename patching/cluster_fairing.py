@@ -191,10 +191,10 @@ class ClusterFairing:
         for slots, eq in equations:
             np.add.at(c, (slice(at, at + eq.shape[0]), column[loc(slots)]), eq)
             at += eq.shape[0]
-        return self._minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources)
+        return self._minimise(h, c, nu, pull_column, rows, column, sources)
 
     @staticmethod
-    def _minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources):
+    def _minimise(h, c, nu, pull_column, rows, column, sources):
         """u = K s minimising u^T H_uu u + 2 u^T H_us s + mu |u - s_pull|^2 under C_u u + C_s s = 0.
 
         Each equation is first scaled to unit norm: G_0..G_5 scale with the intervals squared
