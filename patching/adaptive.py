@@ -4,10 +4,10 @@
 patching while the refined mesh stays small (1,024 faces, or with refinement="global" 6 steps
 and 2M faces); beyond that (``operator._refinement``) it takes this module's patches instead,
 with the T-junctions as split sides (``split_sides``): the pawn (588 faces, s = 6) would need
-2.4 M faces, a 5 x 4 torus with one crease at s = 5 20,480 faces for 632 patches here.  Here only the faces near what still needs the
-sharp rules are refined again.  Level 0 is the input mesh; ``G_j`` is the
-global level-j mesh (``subdivision.subdivide(mesh, j)``), which is never built: at level j
-only a *window* ``W_j``, a submesh of ``G_j``, is.  Its faces are
+2.4 M faces, a 5 x 4 torus with one crease at s = 5 20,480 faces for 632 patches here.  Here
+only the faces near what still needs the sharp rules are refined again.  Level 0 is the input
+mesh; ``G_j`` is the global level-j mesh (``subdivision.subdivide(mesh, j)``), which is never
+built: at level j only a *window* ``W_j``, a submesh of ``G_j``, is.  Its faces are
 
 * the *domain* ``D_j``: the children of the faces refined at level j - 1 (``D_0``: all faces);
 * a margin of rings around it, so that subdivision rules and patches, which are local, are

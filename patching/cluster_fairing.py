@@ -191,22 +191,28 @@ class ClusterFairing:
         for slots, eq in equations:
             np.add.at(c, (slice(at, at + eq.shape[0]), column[loc(slots)]), eq)
             at += eq.shape[0]
-        return self._minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources)
+        return self._minimise(h, c, nu, pull_column, rows, column, sources)
 
     @staticmethod
-    def _minimise(h, c, nu, pull_column, rows, comp, unknown_comps, column, sources):
+    def _minimise(h, c, nu, pull_column, rows, column, sources):
         """u = K s minimising u^T H_uu u + 2 u^T H_us s + mu |u - s_pull|^2 under C_u u + C_s s = 0.
 
-        Pivoted QR of C_u^T (G_0 is rank deficient: the tangent plane): C_u^T[:, piv] = Q R, r
-        its rank; u = Q_1 y + Z w with Z = Q[:, r:] the null space of C_u, y from the r
-        independent equations (R_1^T y = -C_s[piv] s, triangular; the dependent ones hold since
-        the per-EP steps show the system solvable for every s), and w minimising the energy on
-        Z (positive definite there: mu > 0)."""
+        Each equation is first scaled to unit norm: G_0..G_5 scale with the intervals squared
+        (alpha = d_i d_{i-1}), the fifth difference does not, and the rank test below is
+        relative, so intervals of 1e5 made it drop the fifth differences as dependent rows and
+        intervals of 1e-6 the G_k (normal jumps of 10 and 100 degrees).  Pivoted QR of C_u^T
+        (G_0 is rank deficient: the tangent plane): C_u^T[:, piv] = Q R, r its rank;
+        u = Q_1 y + Z w with Z = Q[:, r:] the null space of C_u, y from the r independent
+        equations (R_1^T y = -C_s[piv] s, triangular; the dependent ones hold since the per-EP
+        steps show the system solvable for every s), and w minimising the energy on Z
+        (positive definite there: mu > 0)."""
         huu, hus = h[:nu, :nu], h[:nu, nu:]
         mu = MU * float(np.mean(np.diag(huu)))
         ns = h.shape[0] - nu
         pull = np.zeros((nu, ns))
         pull[np.arange(nu), pull_column - nu] = 1.0
+        norm = np.linalg.norm(c, axis=1, keepdims=True)
+        c = c / np.where(norm > 0.0, norm, 1.0)
         cu, cs = c[:, :nu], c[:, nu:]
         q, r, piv = sla.qr(cu.T, pivoting=True)
         diag = np.abs(np.diag(r))

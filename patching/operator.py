@@ -137,8 +137,6 @@ def build_operator(
         raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
     if interior not in INTERIOR_RULES:
         raise ValueError(f"interior must be one of {INTERIOR_RULES}, not {interior!r}")
-    if refinement not in REFINEMENTS:
-        raise ValueError(f"refinement must be one of {REFINEMENTS}, not {refinement!r}")
     topo = topology or Topology(mesh)
     if not _refined:
         # Tears are judged on the user's mesh, before any refinement: refining a zero strip
@@ -318,7 +316,9 @@ def _refinement(topo: Topology, refinement: str = "auto") -> tuple[int, bool]:
     MAX_REFINED_FACES faces), and under refinement="auto" also when they would make more than
     MAX_AUTO_GLOBAL_FACES faces, unless the adaptive path cannot go or gains nothing: a zero
     knot interval anywhere (``adaptive_operator`` refuses them), or no semi-sharp tag (the one
-    step for n-gons refines every face on either path)."""
+    step for n-gons refines every face on either path).  ValueError for another refinement."""
+    if refinement not in REFINEMENTS:
+        raise ValueError(f"refinement must be one of {REFINEMENTS}, not {refinement!r}")
     mesh = topo.mesh
     semi = _semi_sharp_steps(topo)
     steps = semi or (0 if mesh.is_quad_mesh else 1)

@@ -33,7 +33,8 @@ def torus_meshes(draw, min_size: int = 4, max_size: int = 9, ratio: float = 20.0
 
 
 def relabelled(mesh: ControlMesh, seed: int) -> tuple[ControlMesh, np.ndarray, np.ndarray, np.ndarray]:
-    """The same mesh with vertices and faces renumbered and each face's first vertex rotated.
+    """The same mesh with vertices and faces renumbered and each face's first vertex rotated;
+    its tags (intervals, creases, corners, holes, interpolateboundary) follow the new numbers.
 
     Returns (mesh, vertex_perm, face_perm, rotation): new vertex i is old vertex_perm[i], new
     face k is old face face_perm[k] starting at its vertex rotation[k]."""
@@ -44,16 +45,29 @@ def relabelled(mesh: ControlMesh, seed: int) -> tuple[ControlMesh, np.ndarray, n
     fperm = rng.permutation(len(quads))
     rot = rng.integers(0, 4, len(quads))
     faces = np.array([np.roll(quads[f], -r) for f, r in zip(fperm, rot)])
+
+    def edge(a: int, b: int) -> tuple[int, int]:
+        return int(inverse[a]), int(inverse[b])
+
     new = from_arrays(
         mesh.vertices[vperm],
         inverse[faces],
-        intervals={(int(inverse[a]), int(inverse[b])): d for (a, b), d in mesh.intervals.items()},
+        intervals={edge(a, b): d for (a, b), d in mesh.intervals.items()},
+        creases={edge(a, b): s for (a, b), s in mesh.creases.items()},
+        corners={int(inverse[v]): s for v, s in mesh.corners.items()},
+        holes=sorted(int(k) for k in np.flatnonzero(np.isin(fperm, sorted(mesh.holes)))),
+        interpolate_boundary=mesh.interpolate_boundary,
         name=mesh.name,
     )
     return new, vperm, fperm, rot
 
 
 def reversed_orientation(mesh: ControlMesh) -> ControlMesh:
-    """Every face reversed, keeping its first vertex: (v0, v1, v2, v3) -> (v0, v3, v2, v1)."""
+    """Every face reversed, keeping its first vertex: (v0, v1, v2, v3) -> (v0, v3, v2, v1); the
+    tags unchanged."""
     quads = mesh.quads()
-    return from_arrays(mesh.vertices, quads[:, [0, 3, 2, 1]], intervals=dict(mesh.intervals), name=mesh.name)
+    return from_arrays(
+        mesh.vertices, quads[:, [0, 3, 2, 1]], intervals=dict(mesh.intervals), creases=dict(mesh.creases),
+        corners=dict(mesh.corners), holes=sorted(mesh.holes), interpolate_boundary=mesh.interpolate_boundary,
+        name=mesh.name,
+    )

@@ -104,3 +104,24 @@ def test_joint_solve_removes_the_lefthanded_folds():
     _, joint_turning = normal_turning(patching.build(mesh), samples=17)
     assert seed_turning.min() < -0.5
     assert joint_turning.min() > 0.5
+
+
+@pytest.mark.parametrize("unit", [1e-6, 1e6])
+def test_the_joint_solve_does_not_depend_on_the_unit_of_the_intervals(unit):
+    """Multiplying every interval by the same factor leaves the surface unchanged (the
+    connecting functions see ratios only).  On the L-shaped polycube (clusters of valence-3
+    and -5 EPs with spokes to regular vertices) intervals of 1e6 once dropped the fifth
+    differences as dependent rows, intervals of 1e-6 the G1 equations (normal jumps of 13 and
+    113 degrees)."""
+    from patching.primitives import polycube
+
+    mesh = with_random_intervals(polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1), 20.0, seed=0)
+    assert clusters_of(mesh)
+    faces = [list(mesh.face(f)) for f in range(mesh.n_faces)]
+    scaled = patching.from_arrays(mesh.vertices, faces, intervals={k: unit * d for k, d in mesh.intervals.items()})
+    surface, reference = patching.build(scaled), patching.build(mesh)
+    angle, _ = shared_edge_normal_jumps(surface)
+    assert angle <= 1e-6
+    # the same local solves on rows scaled by unit^2: round-off of the dense solve (measured 3e-10)
+    for a, b in zip(surface.groups, reference.groups):
+        np.testing.assert_allclose(a.coefficients, b.coefficients, rtol=0, atol=1e-9 * reference.size)

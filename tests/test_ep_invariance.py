@@ -1,7 +1,10 @@
 """Invariance of the EP construction (issue 6): affine invariance, relabelling, orientation
 reversal, mirroring, and symmetry, on closed meshes with EPs of valence 3 to 6."""
 
+import dataclasses
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -100,3 +103,39 @@ def test_symmetric_mesh_with_symmetric_intervals_gives_a_symmetric_surface():
 
     dist, _ = cKDTree(points).query(mirrored)
     assert dist.max() <= TOL * surface.size
+
+
+def cube_with_a_hole():
+    """The cube (one cluster of eight valence-3 EPs) with face 0 a hole: four of the
+    cluster's EPs have the hole in their ring."""
+    return dataclasses.replace(quad_mesh_with_eps("cube"), holes=frozenset({0}))
+
+
+#: Meshes whose EPs form clusters (joined by spokes), so that the joint G1 solve of
+#: cluster_fairing (the default) sets their G1 coefficients.
+CLUSTER_MESHES = {
+    "cube": lambda: quad_mesh_with_eps("cube"),
+    "cube with a hole": cube_with_a_hole,
+    "l-shape": MESHES["l-shape"],
+    "polycube-4": lambda: polycube([(0, 0, 0), (1, 0, 0), (1, 1, 0), (1, 1, 1)], 1),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CLUSTER_MESHES))
+def test_the_joint_solve_of_clusters_is_invariant(name):
+    """Relabelling, reversed orientation and mirroring on meshes with EP clusters, at the
+    interval ratio where the joint and the seed's solves differ most (20)."""
+    from patching import cluster_fairing
+    from patching.features import features
+    from patching.g1_patches import ep_groups
+
+    mesh = with_random_intervals(CLUSTER_MESHES[name](), 20.0, seed=3)
+    topo = patching.Topology(mesh)
+    assert cluster_fairing.ep_clusters(ep_groups(topo, topo.extraordinary, features(topo)), topo.n_vertices)
+    surface = patching.build(mesh)
+    new, _, fperm, _ = relabelled(mesh, 3)
+    assert_same_patches(surface, patching.build(new), face_map=fperm)
+    assert_same_patches(surface, patching.build(reversed_orientation(mesh)))
+    flip = np.diag([-1.0, 1.0, 1.0])
+    mirrored = reversed_orientation(mesh.with_positions(mesh.vertices @ flip))
+    assert_same_patches(surface, patching.build(mirrored), point_map=lambda net: net @ flip)

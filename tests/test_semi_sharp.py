@@ -111,3 +111,11 @@ def test_the_global_path_stays_where_the_adaptive_one_cannot_go_or_gains_nothing
         assert patching.operator.patched_mesh(mesh).n_faces == faces
         surface = patching.build(mesh)
         assert not surface.topology.has_split_sides and surface.n_patches == (patches or faces)
+
+
+def test_an_unknown_refinement_is_refused_by_patched_mesh_too():
+    """patched_mesh(refinement=...) is public beside build_operator(refinement=...): a typo
+    ("globl") raised nothing and silently meant "global"."""
+    for call in (patching.operator.patched_mesh, patching.build_operator):
+        with pytest.raises(ValueError, match="refinement must be one of"):
+            call(creased_cube(3.0), refinement="globl")
