@@ -142,7 +142,7 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
     except ValueError:
         raise InputFileError(f"tag counts '{parts[2]}' are not nint/nfloat/nstring", loc) from None
     args = parts[3:]
-    if min(nint, nfloat, nstring) < 0 or len(args) < nint + nfloat + nstring:
+    if min(nint, nfloat, nstring) < 0 or len(args) != nint + nfloat + nstring:
         raise InputFileError(f"tag '{tag}' declares {nint}/{nfloat}/{nstring} arguments, has {len(args)}", loc)
     try:
         ints = [int(a) for a in args[:nint]]
@@ -163,9 +163,9 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
             if math.isnan(value) or value < 0 or (tag == "interval" and math.isinf(value)):
                 raise error(f"{tag} {value} of edge {a}-{b} must be finite and >= 0", loc)
             key = (min(a, b), max(a, b))
-            if tag == "interval" and key in target and target[key] != value:
-                raise KnotError(
-                    f"edge {a}-{b} has two intervals, {target[key]} and {value}",
+            if key in target and target[key] != value:
+                raise error(
+                    f"edge {a}-{b} has two {tag} values, {target[key]} and {value}",
                     f"{locations[(tag, key)]} and {loc}",
                 )
             target[key] = value
@@ -175,6 +175,8 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
         for v, s in zip(ints, values):
             if math.isnan(s) or s < 0:
                 raise TagError(f"corner sharpness {s} of vertex {v} must be >= 0", loc)
+            if v in corners and corners[v] != s:
+                raise TagError(f"vertex {v} has two corner values, {corners[v]} and {s}", f"{locations[('corner', v)]} and {loc}")
             corners[v] = s
             locations[("corner", v)] = loc
     elif tag == "hole":

@@ -59,6 +59,13 @@ BAD_INPUTS = {
     "a step file handed to build": ("ISO-10303-21;\nHEADER;\n", "STEP file", "bad.obj"),
     "text that is not obj": ("hello world\n", "not an OBJ statement", "bad.obj:1"),
     "tag with missing arguments": (torus_obj(extra="t interval 2/1/0 0\n"), "declares", "bad.obj:33"),
+    "tag with more arguments than declared": (torus_obj(extra="t crease 2/1/0 0 1 3 4\n"), "declares 2/1/0 arguments, has 4", "bad.obj:33"),
+    "one edge, two crease values": (
+        torus_obj(extra="t crease 2/1/0 0 1 3\nt crease 2/1/0 1 0 5\n"), "edge 1-0 has two crease values, 3.0 and 5.0", "bad.obj:33 and bad.obj:34"
+    ),
+    "one vertex, two corner values": (
+        torus_obj(extra="t corner 1/1/0 4 3\nt corner 1/1/0 4 10\n"), "vertex 4 has two corner values", "bad.obj:33 and bad.obj:34"
+    ),
 }
 
 
