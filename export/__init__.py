@@ -31,18 +31,18 @@ def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
     return _write_step(to_shape(surface), path, surface.name)
 
 
-def to_build123d(source, angles: str = "optimized", anchors: str = "eigen-polyhedron"):
+def to_build123d(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
     """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file."""
     from .cad import to_build123d as _to_build123d
 
-    return _to_build123d(source, angles, anchors)
+    return _to_build123d(source, angles, anchors, **options)
 
 
-def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhedron"):
+def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
     """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape."""
     from .cad import to_cadquery as _to_cadquery
 
-    return _to_cadquery(source, angles, anchors)
+    return _to_cadquery(source, angles, anchors, **options)
 
 
 def write(surface: BezierSurface, path: str | os.PathLike, format: str | None = None, *, tolerance: float | None = None) -> Path:

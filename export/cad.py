@@ -4,7 +4,8 @@ Both libraries wrap OpenCASCADE's ``TopoDS_Shape`` in their own classes; the env
 one OCP module (README, "What gets installed"), so the B-rep of ``export.brep.to_shape`` is
 handed over as it is, without a file or a copy: a closed surface is a ``Solid``, an open one a
 ``Shell``.  The source may be a ``BezierSurface``, a ``ControlMesh`` or the path of a mesh file;
-``angles`` and ``anchors`` are passed to ``patching.build`` for the last two.
+``angles``, ``anchors`` and any further keyword of ``patching.build`` (``interior``,
+``g1_solve``, ``refinement``) are passed to it for the last two.
 
 The libraries are imported on first use (cadquery alone takes about a second to import).
 """
@@ -24,6 +25,7 @@ def as_surface(
     source: BezierSurface | ControlMesh | str | os.PathLike,
     angles: str = "optimized",
     anchors: str = "eigen-polyhedron",
+    **options,
 ) -> BezierSurface:
     """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ)."""
     if isinstance(source, BezierSurface):
@@ -31,20 +33,21 @@ def as_surface(
     if isinstance(source, (str, os.PathLike)):
         source = patching.read_mesh(source)
     if isinstance(source, ControlMesh):
-        return patching.build(source, angles=angles, anchors=anchors)
+        return patching.build(source, angles=angles, anchors=anchors, **options)
     raise TypeError(f"expected a BezierSurface, a ControlMesh or a mesh path, not {type(source).__name__}")
 
 
-def _shape(source, angles: str, anchors: str):
+def _shape(source, angles: str, anchors: str, options: dict):
     from .brep import to_shape
 
-    return to_shape(as_surface(source, angles, anchors))
+    return to_shape(as_surface(source, angles, anchors, **options))
 
 
 def to_build123d(
     source: BezierSurface | ControlMesh | str | os.PathLike,
     angles: str = "optimized",
     anchors: str = "eigen-polyhedron",
+    **options,
 ):
     """A ``build123d.Solid`` (closed surface) or ``build123d.Shell`` (open surface).
 
@@ -54,7 +57,7 @@ def to_build123d(
     import build123d
     from OCP.TopAbs import TopAbs_SOLID
 
-    shape = _shape(source, angles, anchors)
+    shape = _shape(source, angles, anchors, options)
     if shape.ShapeType() == TopAbs_SOLID:
         return build123d.Solid(shape)
     return build123d.Shell(shape)
@@ -64,10 +67,11 @@ def to_cadquery(
     source: BezierSurface | ControlMesh | str | os.PathLike,
     angles: str = "optimized",
     anchors: str = "eigen-polyhedron",
+    **options,
 ):
     """A ``cadquery.Workplane`` on the XY plane holding one ``cadquery.Solid`` (closed surface)
     or ``cadquery.Shell`` (open surface); ``.val()`` gives that Shape."""
     import cadquery
 
-    shape = cadquery.Shape.cast(_shape(source, angles, anchors))
+    shape = cadquery.Shape.cast(_shape(source, angles, anchors, options))
     return cadquery.Workplane("XY").add(shape)

@@ -121,6 +121,18 @@ def test_angles_and_anchors_reach_the_build():
     assert len({round(v, 9) for v in volumes.values()}) == 3, volumes
 
 
+def test_build_options_reach_the_build():
+    """g1_solve (and any other keyword of patching.build) passes through: every vertex of the
+    cube is an EP, one cluster, where the joint and the seed's solves give different surfaces."""
+    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+
+    mesh = with_random_intervals(quad_mesh_with_eps("cube"), 5.0, seed=0)
+    joint = export.to_build123d(mesh).volume
+    seed = export.to_cadquery(mesh, g1_solve="seed").val().Volume()
+    assert seed == pytest.approx(export.to_build123d(mesh, g1_solve="seed").volume, rel=1e-12)
+    assert abs(joint - seed) > 1e-9 * abs(joint)
+
+
 def test_bad_sources_are_refused(tmp_path):
     with pytest.raises(TypeError, match="BezierSurface"):
         export.to_build123d(42)
