@@ -18,7 +18,7 @@ of the cluster, as the unknowns u of one problem:
 
     E(net) = integral over [0,1]^2 of |S_ss|^2 + 2 |S_st|^2 + |S_tt|^2   (thin plate),
 
-f over the patches around the cluster's EPs, u_hat the unknowns' values before this step
+f over the patches around the cluster's EPs (a hole has none), u_hat the unknowns' values before this step
 (the degree-elevated extraction), mu = ``MU`` times the mean diagonal of the energy's Hessian
 in u.  P00 (the anchors' vertex point, hence the limit point) and all other coefficients are
 held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the black rule),
@@ -99,9 +99,12 @@ def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = 
 class ClusterFairing:
     """The joint step for the clusters of a ``G1Assembly`` (module docstring)."""
 
-    def __init__(self, g1: "G1Assembly", clusters: list[np.ndarray]) -> None:
+    def __init__(self, g1: "G1Assembly", clusters: list[np.ndarray], has_patch: np.ndarray | None = None) -> None:
+        """has_patch: (faces,) bool, the faces that give a patch (holes do not): only those
+        count in the energy; a hole's rows are still read and set like any other."""
         self.g1 = g1
         self.clusters = clusters
+        self.has_patch = np.ones(g1.face_row.size, dtype=bool) if has_patch is None else has_patch
         # rows[k][e, i, j, m]: row of local (j, m) of patch i of EP e of group k
         self._rows = {}
         for k in {int(k) for c in clusters for k in c[:, 0]}:
@@ -180,11 +183,11 @@ class ClusterFairing:
         ns = sources.size
         size = nu + ns
         pull_column = nu + held.size + np.arange(nu)
-        # the thin-plate energy of every patch of the cluster
+        # the thin-plate energy of every patch of the cluster (hole faces have no surface)
         iss, ist, itt = thin_plate_matrices(5)
         q = iss + 2.0 * ist + itt
         h = np.zeros((size, size))
-        for cols in column[loc(face_rows)]:
+        for cols in column[loc(face_rows[self.has_patch[faces]])]:
             h[np.ix_(cols, cols)] += q
         c = np.zeros((sum(eq.shape[0] for _, eq in equations), size))
         at = 0
@@ -207,7 +210,8 @@ class ClusterFairing:
         steps show the system solvable for every s), and w minimising the energy on Z
         (positive definite there: mu > 0)."""
         huu, hus = h[:nu, :nu], h[:nu, nu:]
-        mu = MU * float(np.mean(np.diag(huu)))
+        scale = float(np.mean(np.diag(huu)))
+        mu = MU * scale if scale > 0.0 else 1.0  # every face a hole: nearest to the extraction
         ns = h.shape[0] - nu
         pull = np.zeros((nu, ns))
         pull[np.arange(nu), pull_column - nu] = 1.0
