@@ -18,9 +18,9 @@ of the cluster, as the unknowns u of one problem:
 
     E(net) = integral over [0,1]^2 of |S_ss|^2 + 2 |S_st|^2 + |S_tt|^2   (thin plate),
 
-f over the patches around the cluster's EPs (a hole has none), u_hat the unknowns' values before this step
-(the degree-elevated extraction), mu = ``MU`` times the mean diagonal of the energy's Hessian
-in u.  P00 (the anchors' vertex point, hence the limit point) and all other coefficients are
+f over the patches around the cluster's EPs (a hole has none), u_hat the unknowns' values
+before this step (the degree-elevated extraction), mu = ``MU`` times the mean diagonal of the
+energy's Hessian in u.  P00 (the anchors' vertex point, hence the limit point) and all other coefficients are
 held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the black rule),
 spokes between two EPs G_0..G_5 written in the frame of the lower-numbered end (both frames
 give the same conditions).  The energy is quadratic and the constraints linear in the
