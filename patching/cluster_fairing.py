@@ -10,9 +10,9 @@ r_2 and r_3, and G_2, G_3 fix a weighted average of the cross rows A[k,1], B[1,k
 backwards by more than half the edge whatever the green step chooses.  The red solves at the
 two ends cannot see each other, so no per-EP rule removes it.
 
-Here every cluster (a connected component, two EPs or more, of the graph of EP-EP spokes
-between smooth closed rings) takes all the coefficients those steps would set, at every EP
-of the cluster, as the unknowns u of one problem:
+Here every cluster (a connected component, two EPs or more, of the graph of EP-EP spokes with
+G1 conditions) takes all the coefficients those steps would set, at every EP of the cluster,
+as the unknowns u of one problem:
 
     min_u  sum_f E(net_f)  +  mu |u - u_hat|^2      subject to  G_0..G_5 of every spoke,
 
@@ -20,10 +20,13 @@ of the cluster, as the unknowns u of one problem:
 
 f over the patches around the cluster's EPs (a hole has none), u_hat the unknowns' values
 before this step (the degree-elevated extraction), mu = ``MU`` times the mean diagonal of the
-energy's Hessian in u.  P00 (the anchors' vertex point, hence the limit point) and all other coefficients are
-held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the black rule),
-spokes between two EPs G_0..G_5 written in the frame of the lower-numbered end (both frames
-give the same conditions).  The energy is quadratic and the constraints linear in the
+energy's Hessian in u.  P00 (the anchors' vertex point, hence the limit point) and all other
+coefficients are held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the
+black rule), spokes between two EPs G_0..G_5 written in the frame of the lower-numbered end
+(both frames give the same conditions).  Sector EPs (seed 002 section 4.2) as in the seed's
+steps: a sharp spoke has no G1 condition and keeps the crease B-spline (its spoke points
+held), a dart's one sharp spoke is free but for the fifth difference, and a boundary fan's
+missing patch has no unknowns.  The energy is quadratic and the constraints linear in the
 coefficients, so u = K s over the held rows s: a row mixing built from intervals and
 connecting functions only (M never reads positions).  K's rows sum to 1 (constants satisfy the
 constraints with zero energy and zero pull), so affine invariance holds.
@@ -34,7 +37,7 @@ the same fold counts within noise (34 against 37 folded patches over eight draws
 none over 21 draws of ratio 5 for both), so the simpler form is used.  mu: 0.1 (0.03 gave the
 same folds, 0.2 and 0.5 more; 0.01 left folds at ratio 5).
 
-Cost: one dense solve per cluster (SVD of the constraints, null space, energy), and every
+Cost: one dense solve per cluster (QR of the constraints, null space, energy), and every
 unknown row depends on every held row of the cluster, so M's rows there are as long as the
 cluster's stencil.  Clusters above ``MAX_CLUSTER_EPS`` EPs keep the seed's per-EP steps.  On
 meshes refined once or more no two EPs are adjacent, and nothing changes.
@@ -65,17 +68,14 @@ MAX_CLUSTER_EPS = 16
 
 def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = None) -> list[np.ndarray]:
     """Clusters as (m, 2) arrays of (group index, row index), m >= 2: components of the graph
-    of EP-EP spokes with G1 constraints, over EPs with smooth closed rings (no sharp spokes,
-    no boundary, no fixed sector angles).  A component that holds any other EP, or more than
-    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``), is left out (its EPs take the per-EP steps)."""
+    of EP-EP spokes with G1 constraints (sharp spokes join nothing).  A component of more than
+    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``) is left out: its EPs take the per-EP steps."""
     max_eps = MAX_CLUSTER_EPS if max_eps is None else max_eps
     where = np.full((n_vertices, 2), -1, dtype=np.int64)
-    eligible = np.zeros(n_vertices, dtype=bool)
     a, b = [], []
     for k, g in enumerate(groups):
         where[g.vertices, 0] = k
         where[g.vertices, 1] = np.arange(len(g.vertices))
-        eligible[g.vertices] = g.theta is None and not g.boundary
         far = np.where(g.unconstrained[None, :], -1, g.far)
         e, i = np.nonzero(far >= 0)
         a.append(g.vertices[e])
@@ -86,10 +86,9 @@ def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = 
     _, label = connected_components(graph, directed=False)
     is_ep = where[:, 0] >= 0
     labels, counts = np.unique(label[is_ep], return_counts=True)
-    bad = np.unique(label[is_ep & ~eligible])
     out = []
     for lab, count in zip(labels.tolist(), counts.tolist()):
-        if count < 2 or count > max_eps or lab in bad:
+        if count < 2 or count > max_eps:
             continue
         vs = np.flatnonzero(is_ep & (label == lab))
         out.append(where[vs])
@@ -135,16 +134,26 @@ class ClusterFairing:
         unknown_rows, merges, faces, equations = [], [], [], []
         for k, e in cluster.tolist():
             g = g1.groups[k]
-            r = self._rows[k][e]  # (n, 6, 6)
+            r = self._rows[k][e]  # (n, 6, 6); patch g.gap (a boundary fan's missing one) unused
             before = np.roll(r, 1, axis=0)  # before[i] = patch i - 1
-            # the spoke i's coefficients are rows of both patches beside it: one unknown each
-            merges.append(np.stack([r[:, :, 0].ravel(), before[:, 0, :].ravel()], axis=1))
-            # spoke points, P20, P30; the face point, A[2,1], A[3,1]; B[1,2], B[1,3]
-            unknown_rows += [r[:, 1:4, 0].ravel(), r[:, 1:4, 1].ravel(), before[:, 1, 2:4].ravel()]
-            faces.append(g.faces[e])
+            present = np.arange(g.n) != g.gap
+            pinned, free = g.pinned, ~g.unconstrained
             keys = g1.spoke_keys(k)[e]
             v = int(g.vertices[e])
             for i in range(g.n):
+                a_side, b_side = present[i], present[i - 1]
+                if a_side and b_side:  # spoke i's coefficients are rows of both patches beside it
+                    merges.append(np.stack([r[i, :, 0], before[i, 0, :]], axis=1))
+                if a_side:
+                    faces.append(g.faces[e, i])
+                    unknown_rows.append(r[i, 1:2, 1])  # the face point
+                spoke = r[i, :, 0] if a_side else before[i, 0, :]
+                if not pinned[i]:  # spoke points, P20, P30 (a crease keeps its B-spline)
+                    unknown_rows.append(spoke[1:4])
+                if not free[i]:
+                    continue  # no G1 across a sharp spoke
+                # A[2,1], A[3,1] and B[1,2], B[1,3] beside a smooth spoke (both patches exist)
+                unknown_rows += [r[i, 2:4, 1], before[i, 1, 2:4]]
                 far = int(g.far[e, i])
                 if 0 <= far < v:
                     continue  # set once, from the lower-numbered end
@@ -155,11 +164,15 @@ class ClusterFairing:
                     fifth = np.concatenate([fifth_difference, np.zeros(12)])
                     eq = np.vstack([eq[:4], fifth])
                 equations.append((slots, eq))
-        faces = np.unique(np.concatenate(faces))
+            for i in np.flatnonzero(~free & ~pinned & (g.far[e] < 0)):  # a dart's spoke: P30 by eq. 8's last row
+                spoke = r[i, :, 0] if present[i] else before[i, 0, :]
+                equations.append((spoke, fifth_difference[None, :]))
+        faces = np.asarray(faces, dtype=np.int64)
+        faces = np.unique(faces)
         face_rows = g1.face_row[faces][:, None] + np.arange(36)[None, :]
         unknown_rows = np.concatenate(unknown_rows)
-        merges = np.concatenate(merges)
-        slot_rows = np.concatenate([s for s, _ in equations])
+        merges = np.concatenate(merges) if merges else np.zeros((0, 2), dtype=np.int64)
+        slot_rows = np.concatenate([s for s, _ in equations] + [np.zeros(0, dtype=np.int64)])
         rows, inverse = np.unique(np.concatenate([face_rows.ravel(), unknown_rows, merges.ravel(), slot_rows]), return_inverse=True)
         local = dict(zip(rows.tolist(), range(rows.size)))  # row -> local index
         loc = np.vectorize(local.__getitem__, otypes=[np.int64])

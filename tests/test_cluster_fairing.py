@@ -17,14 +17,19 @@ from patching.subdivision import subdivide
 from patching.topology import Topology
 from tests.conftest import shape_files
 from tests.test_g1_patches import quad_mesh_with_eps, shared_edge_normal_jumps, with_random_intervals
-from tests.test_operator_speed_equivalence import reference_matrix
+from tests.test_operator_speed_equivalence import boundary_ep, reference_matrix
 
 CUBE = quad_mesh_with_eps("cube")
 
 
 def clusters_of(mesh, max_eps=None):
+    """The EP clusters build_operator solves jointly (its EPs: smooth extraordinary vertices
+    and sector vertices)."""
     topo = Topology(mesh)
-    groups = ep_groups(topo, topo.extraordinary, features(topo))
+    feats = features(topo)
+    smooth = (feats.count == 0) & ~feats.corner
+    eps = np.union1d(topo.extraordinary[smooth[topo.extraordinary]], np.flatnonzero(feats.sector_vertex))
+    groups = ep_groups(topo, eps, feats)
     found = cluster_fairing.ep_clusters(groups, topo.n_vertices, max_eps)
     return [sorted(int(groups[k].vertices[e]) for k, e in c) for c in found]
 
@@ -63,12 +68,29 @@ def joint_objective(mesh, seed: int):
     return objective, joint @ points, seed_m @ points
 
 
+def creased_cube(edges) -> patching.ControlMesh:
+    return patching.from_arrays(CUBE.vertices, CUBE.quads(), creases={e: 10.0 for e in edges}, name="creased")
+
+
+#: Meshes with clusters: smooth rings; a crease (its spokes pinned to the crease curve, sector
+#: angles); a boundary fan (a ring with a gap).  Not a dart between two EPs (the cube with one
+#: sharp edge): there the seed's black step sets P30 from both ends at once, so its curve is
+#: not quartic and d below is not feasible; the joint solve keeps it quartic.
+CLUSTER_MESHES = {
+    "cube": lambda: CUBE,
+    "cube with a creased corner": lambda: creased_cube([(0, 1), (1, 3)]),
+    "bipyramid-5 with a boundary EP": lambda: boundary_ep(1),
+}
+
+
+@pytest.mark.parametrize("case", list(CLUSTER_MESHES))
 @pytest.mark.parametrize("seed", range(3))
-def test_the_joint_solution_minimises_its_objective(seed):
+def test_the_joint_solution_minimises_its_objective(seed, case):
     """Along the feasible direction d = (seed's solution - joint's), which changes only the
     unknowns and keeps every G1 equation, the quadratic J has no linear term at the joint
     solution (J(c + d) = J(c - d)), and the seed's solution costs more."""
-    mesh = with_random_intervals(CUBE, 5.0, seed=seed)
+    mesh = with_random_intervals(CLUSTER_MESHES[case](), 5.0, seed=seed)
+    assert clusters_of(mesh)
     objective, c_joint, c_seed = joint_objective(mesh, seed)
     d = c_seed - c_joint
     assert np.abs(d).max() > 1e-3  # the two solves differ
@@ -105,6 +127,28 @@ def test_joint_solve_keeps_g1_and_affine_invariance(seed):
     op = patching.build_operator(mesh)
     np.testing.assert_allclose(op.row_sums, 1.0, rtol=0, atol=1e-13)
     angle, gap = shared_edge_normal_jumps(op.evaluate(mesh.vertices))
+    assert angle <= 1e-6 and gap <= 1e-12
+
+
+@pytest.mark.parametrize("case", list(CLUSTER_MESHES) + ["cube with two darts"])
+@pytest.mark.parametrize("seed", range(2))
+def test_clusters_with_sharp_spokes_stay_g1_across_smooth_edges(case, seed):
+    """Clusters holding crease, dart and boundary EPs: G1 across every edge that is not sharp,
+    C0 everywhere (the sharp edges' own jumps are the creases)."""
+    from patching.features import sharp_edges
+
+    base = creased_cube([(0, 1)]) if case == "cube with two darts" else CLUSTER_MESHES[case]()
+    mesh = with_random_intervals(base, 20.0, seed=seed)
+    assert clusters_of(mesh)
+    op = patching.build_operator(mesh)
+    np.testing.assert_allclose(op.row_sums, 1.0, rtol=0, atol=1e-13)
+    surface = op.evaluate(mesh.vertices)
+    topo = Topology(mesh)
+    faces = np.concatenate([g.faces for g in surface.groups])
+    # side k of a patch runs along its face's half-edge k
+    on_sharp = sharp_edges(topo)[topo.edge_of[mesh.face_offsets[faces][:, None] + np.arange(4)]]
+    angle, gap = shared_edge_normal_jumps(surface, skip=set(surface.topology.side_edge[on_sharp].tolist()))
+    assert on_sharp.any() == (case != "cube")
     assert angle <= 1e-6 and gap <= 1e-12
 
 

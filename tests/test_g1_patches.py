@@ -45,9 +45,10 @@ def with_random_intervals(mesh: patching.ControlMesh, ratio: float, seed: int) -
     )
 
 
-def shared_edge_normal_jumps(surface, samples: int = 7) -> tuple[float, float]:
+def shared_edge_normal_jumps(surface, samples: int = 7, skip=()) -> tuple[float, float]:
     """Largest normal angle (degrees) and gap along every shared edge, evaluated with numpy:
-    a second implementation beside export.continuity (OpenCASCADE)."""
+    a second implementation beside export.continuity (OpenCASCADE).  skip: edge ids (of the
+    patch topology) left out of the angle, e.g. sharp edges."""
     topo = surface.topology
     nets = [net for _, _, _, net in surface.patches()]
     uses: dict[int, list[tuple[int, int]]] = {}
@@ -69,7 +70,8 @@ def shared_edge_normal_jumps(surface, samples: int = 7) -> tuple[float, float]:
         (p1, n1), (p2, n2) = values
         worst_gap = max(worst_gap, float(np.abs(p1 - p2).max()))
         angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), (n1 * n2).sum(1)))
-        worst_angle = max(worst_angle, float(angle.max()))
+        if e not in skip:
+            worst_angle = max(worst_angle, float(angle.max()))
     return worst_angle, worst_gap
 
 
