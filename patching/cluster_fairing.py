@@ -62,14 +62,19 @@ __all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS"]
 
 #: Weight of the pull towards the extraction, relative to the mean diagonal of the energy.
 MU = 0.1
-#: Largest cluster solved jointly; larger ones keep the seed's per-EP steps (module docstring).
+#: Largest cluster solved jointly, in EPs and in faces around them; larger ones keep the seed's
+#: per-EP steps (module docstring).  Every unknown row (about 8 a face) depends on every held
+#: row (36 a face), so a cluster of f faces puts about 300 f^2 weights into the step: 1.2M at
+#: 64 faces.
 MAX_CLUSTER_EPS = 16
+MAX_CLUSTER_FACES = 64
 
 
 def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = None) -> list[np.ndarray]:
     """Clusters as (m, 2) arrays of (group index, row index), m >= 2: components of the graph
     of EP-EP spokes with G1 constraints (sharp spokes join nothing).  A component of more than
-    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``) is left out: its EPs take the per-EP steps."""
+    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``) or ``MAX_CLUSTER_FACES`` faces around them is
+    left out: its EPs take the per-EP steps."""
     max_eps = MAX_CLUSTER_EPS if max_eps is None else max_eps
     where = np.full((n_vertices, 2), -1, dtype=np.int64)
     a, b = [], []
@@ -91,7 +96,11 @@ def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = 
         if count < 2 or count > max_eps:
             continue
         vs = np.flatnonzero(is_ep & (label == lab))
-        out.append(where[vs])
+        members = where[vs]
+        faces = np.concatenate([groups[k].faces[e] for k, e in members.tolist()])
+        if np.unique(faces[faces >= 0]).size > MAX_CLUSTER_FACES:
+            continue
+        out.append(members)
     return out
 
 
@@ -199,9 +208,10 @@ class ClusterFairing:
         # the thin-plate energy of every patch of the cluster (hole faces have no surface)
         iss, ist, itt = thin_plate_matrices(5)
         q = iss + 2.0 * ist + itt
-        h = np.zeros((size, size))
+        h = np.zeros((nu, size))  # the energy's rows of the unknowns: [H_uu | H_us]
         for cols in column[loc(face_rows[self.has_patch[faces]])]:
-            h[np.ix_(cols, cols)] += q
+            mine = cols < nu
+            h[np.ix_(cols[mine], cols)] += q[mine]
         c = np.zeros((sum(eq.shape[0] for _, eq in equations), size))
         at = 0
         for slots, eq in equations:
@@ -222,10 +232,10 @@ class ClusterFairing:
         equations (R_1^T y = -C_s[piv] s, triangular; the dependent ones hold since the per-EP
         steps show the system solvable for every s), and w minimising the energy on Z
         (positive definite there: mu > 0)."""
-        huu, hus = h[:nu, :nu], h[:nu, nu:]
+        huu, hus = h[:, :nu], h[:, nu:]
         scale = float(np.mean(np.diag(huu)))
         mu = MU * scale if scale > 0.0 else 1.0  # every face a hole: nearest to the extraction
-        ns = h.shape[0] - nu
+        ns = h.shape[1] - nu
         pull = np.zeros((nu, ns))
         pull[np.arange(nu), pull_column - nu] = 1.0
         norm = np.linalg.norm(c, axis=1, keepdims=True)

@@ -152,9 +152,11 @@ def test_clusters_with_sharp_spokes_stay_g1_across_smooth_edges(case, seed):
     assert angle <= 1e-6 and gap <= 1e-12
 
 
-def test_a_cluster_over_the_cap_takes_the_seed_steps(monkeypatch):
+@pytest.mark.parametrize("cap", [("MAX_CLUSTER_EPS", 7), ("MAX_CLUSTER_FACES", 5)])
+def test_a_cluster_over_the_cap_takes_the_seed_steps(monkeypatch, cap):
+    """The cube's cluster has 8 EPs and 6 faces."""
     mesh = with_random_intervals(CUBE, 5.0, seed=1)
-    monkeypatch.setattr(cluster_fairing, "MAX_CLUSTER_EPS", 7)
+    monkeypatch.setattr(cluster_fairing, *cap)
     capped = patching.build_operator(mesh).matrix
     seed = patching.build_operator(mesh, g1_solve="seed").matrix
     assert abs(capped - seed).max() == 0.0
