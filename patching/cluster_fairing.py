@@ -39,8 +39,9 @@ same folds, 0.2 and 0.5 more; 0.01 left folds at ratio 5).
 
 Cost: one dense solve per cluster (QR of the constraints, null space, energy), and every
 unknown row depends on every held row of the cluster, so M's rows there are as long as the
-cluster's stencil.  Clusters above ``MAX_CLUSTER_EPS`` EPs keep the seed's per-EP steps.  On
-meshes refined once or more no two EPs are adjacent, and nothing changes.
+cluster's stencil.  Clusters above ``MAX_CLUSTER_EPS`` EPs or ``MAX_CLUSTER_FACES`` faces keep
+the seed's per-EP steps.  On meshes refined once or more no two EPs are adjacent, and nothing
+changes.
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ from .g1_constraints import fifth_difference, spoke_equations
 if TYPE_CHECKING:
     from .g1_patches import EPGroup, G1Assembly, RowMixer
 
-__all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS"]
+__all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS", "MAX_CLUSTER_FACES"]
 
 #: Weight of the pull towards the extraction, relative to the mean diagonal of the energy.
 MU = 0.1
