@@ -11,8 +11,8 @@ backwards by more than half the edge whatever the green step chooses.  The red s
 two ends cannot see each other, so no per-EP rule removes it.
 
 Here every cluster (a connected component, two EPs or more, of the graph of EP-EP spokes with
-G1 conditions) takes all the coefficients those steps would set, at every EP of the cluster,
-as the unknowns u of one problem:
+G1 conditions or a dart's free sharp spoke: ``ep_clusters``) takes all the coefficients those
+steps would set, at every EP of the cluster, as the unknowns u of one problem:
 
     min_u  sum_f E(net_f)  +  mu |u - u_hat|^2      subject to  G_0..G_5 of every spoke,
 
@@ -58,6 +58,7 @@ from .g1_constraints import fifth_difference, spoke_equations
 
 if TYPE_CHECKING:
     from .g1_patches import EPGroup, G1Assembly, RowMixer
+    from .topology import Topology
 
 __all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS", "MAX_CLUSTER_FACES"]
 
@@ -71,18 +72,30 @@ MAX_CLUSTER_EPS = 16
 MAX_CLUSTER_FACES = 64
 
 
-def ep_clusters(groups: "list[EPGroup]", n_vertices: int, max_eps: int | None = None) -> list[np.ndarray]:
+def ep_clusters(groups: "list[EPGroup]", topo: "Topology", max_eps: int | None = None) -> list[np.ndarray]:
     """Clusters as (m, 2) arrays of (group index, row index), m >= 2: components of the graph
-    of EP-EP spokes with G1 constraints (sharp spokes join nothing).  A component of more than
-    ``max_eps`` EPs (default ``MAX_CLUSTER_EPS``) or ``MAX_CLUSTER_FACES`` faces around them is
-    left out: its EPs take the per-EP steps."""
+    of EP-EP spokes whose inner coefficients the solve sets from both ends: spokes with G1
+    constraints, and a dart's sharp spoke (free but for the fifth difference) to another EP.
+    Crease and boundary spokes (pinned) join nothing.  A component of more than ``max_eps``
+    EPs (default ``MAX_CLUSTER_EPS``) or ``MAX_CLUSTER_FACES`` faces around them is left out:
+    its EPs take the per-EP steps.
+
+    Why darts join: the solve at each end of a dart spoke takes P10..P30 of its own frame as
+    unknowns, so two clusters at its two ends would both set the middle rows (a row set twice
+    sums its rules: row sums 2 on the cube with four parallel darts), and each would hold the
+    other's end of the quartic condition at its value before the step."""
     max_eps = MAX_CLUSTER_EPS if max_eps is None else max_eps
+    n_vertices = topo.n_vertices
     where = np.full((n_vertices, 2), -1, dtype=np.int64)
-    a, b = [], []
     for k, g in enumerate(groups):
         where[g.vertices, 0] = k
         where[g.vertices, 1] = np.arange(len(g.vertices))
+    a, b = [], []
+    for g in groups:
         far = np.where(g.unconstrained[None, :], -1, g.far)
+        dart = g.unconstrained & ~g.pinned
+        ends = topo.dest[g.h[:, dart]]
+        far[:, dart] = np.where(where[ends, 0] >= 0, ends, -1)
         e, i = np.nonzero(far >= 0)
         a.append(g.vertices[e])
         b.append(far[e, i])
@@ -133,9 +146,15 @@ class ClusterFairing:
         return inside
 
     def joint(self, mixer: "RowMixer") -> None:
-        """Set every cluster's unknown rows: new rows = K @ held rows."""
+        """Set every cluster's unknown rows: new rows = K @ held rows.  No row may be set by
+        two clusters (RowMixer would add the two rules: row sums 2, a wrong surface), which
+        ``ep_clusters`` ensures by joining EPs along every spoke both ends set; checked here."""
+        owned = np.zeros(mixer.n_rows, dtype=bool)
         for c in self.clusters:
             targets, sources, weights = self.solve(c)
+            if owned[targets].any():
+                raise AssertionError(f"cluster_fairing: row {int(targets[owned[targets]][0])} is set by two clusters")
+            owned[targets] = True
             mixer.set(targets, sources, weights)
 
     def solve(self, cluster: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

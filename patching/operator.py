@@ -211,7 +211,7 @@ def build_operator(
         # Compose the row mixings first (few entries per row), then apply them once to the
         # elevated rows and the extraction: cheaper than a pass over the longer elevated rows
         # per step (serial, half-EP mesh, where red alone sets most rows: 0.13 s against 0.16 s).
-        clusters = ep_clusters(groups_ep, topo.n_vertices) if g1_solve == "joint" else []
+        clusters = ep_clusters(groups_ep, topo) if g1_solve == "joint" else []
         if clusters:
             has_patch_face = np.zeros(mesh.n_faces, dtype=bool)
             has_patch_face[faces] = True

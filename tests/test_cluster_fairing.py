@@ -30,7 +30,7 @@ def clusters_of(mesh, max_eps=None):
     smooth = (feats.count == 0) & ~feats.corner
     eps = np.union1d(topo.extraordinary[smooth[topo.extraordinary]], np.flatnonzero(feats.sector_vertex))
     groups = ep_groups(topo, eps, feats)
-    found = cluster_fairing.ep_clusters(groups, topo.n_vertices, max_eps)
+    found = cluster_fairing.ep_clusters(groups, topo, max_eps)
     return [sorted(int(groups[k].vertices[e]) for k, e in c) for c in found]
 
 
@@ -130,14 +130,27 @@ def test_joint_solve_keeps_g1_and_affine_invariance(seed):
     assert angle <= 1e-6 and gap <= 1e-12
 
 
-@pytest.mark.parametrize("case", list(CLUSTER_MESHES) + ["cube with two darts"])
+#: Every cube vertex a dart: the four x-parallel edges sharp.  Without them the G1 spokes join
+#: only the two x = const faces' EPs, so only the dart spokes tie the two clusters together.
+FOUR_DARTS = [(0, 4), (1, 5), (2, 6), (3, 7)]
+DART_MESHES = {"cube with two darts": lambda: creased_cube([(0, 1)]), "cube with eight darts": lambda: creased_cube(FOUR_DARTS)}
+
+
+def test_a_dart_spoke_between_two_eps_joins_their_clusters():
+    """Both ends of a dart's sharp spoke set its inner coefficients (P10..P30 of their own
+    frame), so its two EPs are solved together; in two clusters both solves set the middle
+    rows and the mixing summed them (row sums 2)."""
+    assert clusters_of(creased_cube(FOUR_DARTS)) == [list(range(8))]
+
+
+@pytest.mark.parametrize("case", list(CLUSTER_MESHES) + list(DART_MESHES))
 @pytest.mark.parametrize("seed", range(2))
 def test_clusters_with_sharp_spokes_stay_g1_across_smooth_edges(case, seed):
     """Clusters holding crease, dart and boundary EPs: G1 across every edge that is not sharp,
-    C0 everywhere (the sharp edges' own jumps are the creases)."""
+    C0 everywhere (the sharp edges' own jumps are the creases), rows of M summing to 1."""
     from patching.features import sharp_edges
 
-    base = creased_cube([(0, 1)]) if case == "cube with two darts" else CLUSTER_MESHES[case]()
+    base = {**CLUSTER_MESHES, **DART_MESHES}[case]()
     mesh = with_random_intervals(base, 20.0, seed=seed)
     assert clusters_of(mesh)
     op = patching.build_operator(mesh)

@@ -131,7 +131,7 @@ def test_the_joint_solve_of_clusters_is_invariant(name):
 
     mesh = with_random_intervals(CLUSTER_MESHES[name](), 20.0, seed=3)
     topo = patching.Topology(mesh)
-    assert cluster_fairing.ep_clusters(ep_groups(topo, topo.extraordinary, features(topo)), topo.n_vertices)
+    assert cluster_fairing.ep_clusters(ep_groups(topo, topo.extraordinary, features(topo)), topo)
     surface = patching.build(mesh)
     new, _, fperm, _ = relabelled(mesh, 3)
     assert_same_patches(surface, patching.build(new), face_map=fperm)
