@@ -208,3 +208,18 @@ def test_the_joint_solve_does_not_depend_on_the_unit_of_the_intervals(unit):
     # the same local solves on rows scaled by unit^2: round-off of the dense solve (measured 3e-10)
     for a, b in zip(surface.groups, reference.groups):
         np.testing.assert_allclose(a.coefficients, b.coefficients, rtol=0, atol=1e-9 * reference.size)
+
+
+def test_a_row_set_by_two_clusters_is_refused_not_summed(monkeypatch):
+    """The guard in ClusterFairing.joint: split the cube's one cluster in two halves that share
+    spokes (as ep_clusters did across darts before 7f0d700) and the build stops instead of
+    summing two rules into one row."""
+    from patching import operator
+
+    def halves(groups, topo, max_eps=None):
+        (whole,) = cluster_fairing.ep_clusters(groups, topo, max_eps)
+        return [whole[:4], whole[4:]]
+
+    monkeypatch.setattr(operator, "ep_clusters", halves)
+    with pytest.raises(AssertionError, match="set by two clusters"):
+        patching.build_operator(with_random_intervals(CUBE, 5.0, seed=0))
