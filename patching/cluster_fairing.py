@@ -55,6 +55,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .anchor_fairing import thin_plate_matrices
 from .g1_constraints import fifth_difference, spoke_equations
+from .g1_patches import _key
 
 if TYPE_CHECKING:
     from .g1_patches import EPGroup, G1Assembly, RowMixer
@@ -121,12 +122,12 @@ def ep_clusters(groups: "list[EPGroup]", topo: "Topology", max_eps: int | None =
 class ClusterFairing:
     """The joint step for the clusters of a ``G1Assembly`` (module docstring)."""
 
-    def __init__(self, g1: "G1Assembly", clusters: list[np.ndarray], has_patch: np.ndarray | None = None) -> None:
+    def __init__(self, g1: "G1Assembly", clusters: list[np.ndarray], has_patch: np.ndarray) -> None:
         """has_patch: (faces,) bool, the faces that give a patch (holes do not): only those
         count in the energy; a hole's rows are still read and set like any other."""
         self.g1 = g1
         self.clusters = clusters
-        self.has_patch = np.ones(g1.face_row.size, dtype=bool) if has_patch is None else has_patch
+        self.has_patch = has_patch
         # rows[k][e, i, j, m]: row of local (j, m) of patch i of EP e of group k
         self._rows = {}
         for k in {int(k) for c in clusters for k in c[:, 0]}:
@@ -140,8 +141,7 @@ class ClusterFairing:
         """(E,) bool per group: the EPs that belong to a cluster."""
         inside = [np.zeros(len(g.vertices), dtype=bool) for g in self.g1.groups]
         for c in self.clusters:
-            inside_k = c[:, 0]
-            for k, e in zip(inside_k.tolist(), c[:, 1].tolist()):
+            for k, e in c.tolist():
                 inside[k][e] = True
         return inside
 
@@ -187,8 +187,7 @@ class ClusterFairing:
                 if 0 <= far < v:
                     continue  # set once, from the lower-numbered end
                 slots = np.concatenate([r[i, :, 0], r[i, :, 1], before[i, 1, :]])
-                key = tuple(None if x != x else float(x) for x in keys[i])
-                eq = spoke_equations(*key)
+                eq = spoke_equations(*_key(keys[i]))
                 if far < 0:
                     fifth = np.concatenate([fifth_difference, np.zeros(12)])
                     eq = np.vstack([eq[:4], fifth])
@@ -196,15 +195,16 @@ class ClusterFairing:
             for i in np.flatnonzero(~free & ~pinned & (g.far[e] < 0)):  # a dart's spoke: P30 by eq. 8's last row
                 spoke = r[i, :, 0] if present[i] else before[i, 0, :]
                 equations.append((spoke, fifth_difference[None, :]))
-        faces = np.asarray(faces, dtype=np.int64)
-        faces = np.unique(faces)
+        faces = np.unique(np.asarray(faces, dtype=np.int64))
         face_rows = g1.face_row[faces][:, None] + np.arange(36)[None, :]
         unknown_rows = np.concatenate(unknown_rows)
         merges = np.concatenate(merges) if merges else np.zeros((0, 2), dtype=np.int64)
         slot_rows = np.concatenate([s for s, _ in equations] + [np.zeros(0, dtype=np.int64)])
-        rows, inverse = np.unique(np.concatenate([face_rows.ravel(), unknown_rows, merges.ravel(), slot_rows]), return_inverse=True)
-        local = dict(zip(rows.tolist(), range(rows.size)))  # row -> local index
-        loc = np.vectorize(local.__getitem__, otypes=[np.int64])
+        rows = np.unique(np.concatenate([face_rows.ravel(), unknown_rows, merges.ravel(), slot_rows]))
+
+        def loc(r: np.ndarray) -> np.ndarray:  # row -> local index (rows is sorted and holds r)
+            return np.searchsorted(rows, r)
+
         m = merges.shape[0]
         link = sp.coo_matrix((np.ones(m), (loc(merges[:, 0]), loc(merges[:, 1]))), shape=(rows.size, rows.size))
         _, comp = connected_components(link, directed=False)
