@@ -7,7 +7,7 @@ they wait for work: on matrices this small that only costs time, and as soon as 
 process (or ``nupatch build -j 2``, or our own sparse-product threads) wants the cores, every
 call waits for the spinning threads.  Measured on catmark_lefthanded (434 faces, 30 EP
 clusters, 2 cores): five builds 12.5 s alone and 41 s with a second build running, against
-3.4 s with one BLAS thread in both cases.  ``threadpoolctl`` (the scikit-learn developers'
+1.6 s and 1.5 s under this limit.  ``threadpoolctl`` (the scikit-learn developers'
 tool for exactly this, already installed with build123d's scikit-learn) sets the limit for the
 duration of a call and restores it after, so a caller's own numpy work keeps its threads.
 """
