@@ -1,4 +1,4 @@
-"""Feature-adaptive refinement (patching.adaptive) on the OpenSubdiv shapes that global
+"""Feature-adaptive refinement (patching.operator.adaptive) on the OpenSubdiv shapes that global
 refinement refuses: levels, patches, windows, build time and peak memory, against the number
 of faces global refinement would need (588 x 4^6 for the pawn).
 
@@ -26,7 +26,7 @@ def run_one(name: str) -> dict:
     import numpy as np
 
     import patching
-    from patching.adaptive import adaptive_operator, junction_residuals
+    from patching.operator.adaptive import adaptive_operator, junction_residuals
 
     mesh = patching.read_mesh(SHAPES / f"{name}.obj")
     start = time.perf_counter()

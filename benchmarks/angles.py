@@ -1,4 +1,4 @@
-"""Time per angle-configuration solve (seed 002, section 3.3), valence 3..8.
+"""Time per angle-configuration solve ([FSLYJ] sec. 3.3), valence 3..8.
 
 Random spoke intervals with max/min ratio <= 5 (the paper's Figs. 1, 13) and <= 20; every
 configuration is new (the cache is bypassed).  Prints ms per solve for the optimized mode (the
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from patching import angle_configuration as ac
+from patching.extraordinary import angle_configuration as ac
 
 
 def solve(d, mode):

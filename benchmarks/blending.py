@@ -1,6 +1,6 @@
-"""Blending-function quality around one EP (seed 002, section 3.6; issue 6): the share of
+"""Blending-function quality around one EP ([FSLYJ] sec. 3.6): the share of
 blending functions with a single local maximum, optimized angles against the uniform baseline
-of [32], over random knot intervals.  Also the paper's Fig. 12 configuration as pictures.
+of [SSEL13], over random knot intervals.  Also the paper's Fig. 12 configuration as pictures.
 
     .venv/bin/python benchmarks/blending.py [--configs 200] [--samples 33] [--anchors] [--interior]
                                             [--figures] [--seed 2024]
@@ -12,10 +12,10 @@ intervals d_i are the first ring.  For each configuration the operator is built 
 angles="optimized" and with angles="uniform", and ``ep_quality`` counts the local maxima of the
 2n + 1 blending functions of the EP, its n edge neighbours and its n diagonal neighbours over
 their whole supports (patch grids joined through the patch topology; see
-``patching.evaluation``).  The normal jump is measured on the same operator with random
+``patching.evaluation.sampling``).  The normal jump is measured on the same operator with random
 control-point heights (the operator does not see positions).  --anchors adds the anchor rules
 "extraction" and "faired" (thin-plate fairing) beside the default "eigen-polyhedron" (section
-3.5; issue 6 item 5).  --interior adds seed 002's cubic-isocurve rule for the four inner
+3.5).  --interior adds [FSLYJ]'s cubic-isocurve rule for the four inner
 coefficients of every quintic patch beside the default, which keeps the extraction's values.
 
 Columns: share of functions with one maximum (EP / edge neighbours / diagonal neighbours /
@@ -38,8 +38,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import patching  # noqa: E402
-from patching.evaluation import blending_maxima, ep_quality, neighbourhood  # noqa: E402
-from patching.topology import Topology  # noqa: E402
+from patching.evaluation.sampling import blending_maxima, ep_quality, neighbourhood  # noqa: E402
+from patching.topology.tables import Topology  # noqa: E402
 from tests.test_evaluation import ep_disc, lifted  # noqa: E402
 
 FIGURES = ROOT / "benchmarks" / "figures"
@@ -110,7 +110,7 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=33)
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--anchors", action="store_true", help="also the 'extraction' and 'faired' anchor rules")
-    ap.add_argument("--interior", action="store_true", help="also seed 002's cubic-isocurve rule for the inner coefficients")
+    ap.add_argument("--interior", action="store_true", help="also [FSLYJ]'s cubic-isocurve rule for the inner coefficients")
     ap.add_argument("--figures", action="store_true", help="only the Fig. 12 pictures")
     ap.add_argument("--show-bad", type=int, default=3, help="list this many failing configurations per row")
     args = ap.parse_args()
@@ -130,7 +130,7 @@ def main() -> None:
                 print(f"  n={key[0]} ratio={key[1]:g} {'/'.join(key[2])}: {item}")
 
 
-#: Fig. 12 of seed 002 (picture lost): a valence-5 EP, "knot intervals 8 on the red edges, 4 on
+#: Fig. 12 of [FSLYJ] (picture lost): a valence-5 EP, "knot intervals 8 on the red edges, 4 on
 #: the blue, 1 elsewhere".  Our reading: red and blue are whole strips (knot columns) through
 #: the EP's spokes, two red strips on spokes 0 and 2 with the blue one between them on spoke 1,
 #: every other strip 1: spoke intervals d = (8, 4, 8, 1, 1).
@@ -140,7 +140,7 @@ FIG12_SPOKES = (8.0, 4.0, 8.0, 1.0, 1.0)
 def _ep_patches(op, mesh, column: int, samples: int, height: float):
     """Per patch of the column's support: planar x, y (samples, samples), the function's values
     and the unit normals of its graph (x, y, height f)."""
-    from patching.evaluation import column_values, evaluate_nets, patch_rows
+    from patching.evaluation.sampling import column_values, evaluate_nets, patch_rows
 
     faces, _, _ = patch_rows(op)
     all_rows = np.arange(faces.size)
@@ -178,7 +178,7 @@ DEFECTS = {
 
 def figure_12(samples: int = 41) -> None:
     """Fig. 12 pictures (contour, zebra, shaded) and contour pictures of the DEFECTS."""
-    figure(FIG12_SPOKES, "fig12", "seed 002 Fig. 12 (our reading): valence 5, spoke strips "
+    figure(FIG12_SPOKES, "fig12", "[FSLYJ] Fig. 12 (our reading): valence 5, spoke strips "
            f"{tuple(int(x) for x in FIG12_SPOKES)}, red 8, blue 4", samples=samples)
     for stem, (spokes, anchors) in DEFECTS.items():
         figure(spokes, stem, f"valence {len(spokes)}, spoke strips {tuple(float(x) for x in spokes)}, other strips 1, "
@@ -189,7 +189,7 @@ def figure(
     spokes, stem: str, title: str, samples: int = 41, kinds=("contour", "zebra", "surface"), anchors: str = "eigen-polyhedron"
 ) -> None:
     """Contour, zebra and shaded pictures of the EP's blending function of a configuration (spoke
-    strips ``spokes``, all others 1), optimized angles beside uniform angles ([32]), saved as
+    strips ``spokes``, all others 1), optimized angles beside uniform angles ([SSEL13]), saved as
     benchmarks/figures/<stem>_<kind>.png.
 
     The control grid follows the knots (``ep_disc(layout="knots")``: a parameter unit is a unit
@@ -307,7 +307,7 @@ def _sizes(names) -> None:
 
 def _mark_maxima(ax, op, mesh, samples: int = 33) -> None:
     """Crosses at the EP function's confirmed local maxima (their grid samples)."""
-    from patching.evaluation import _maxima_nodes, _touched_rows, column_values, evaluate_nets, node_values, sample_graph
+    from patching.evaluation.sampling import _maxima_nodes, _touched_rows, column_values, evaluate_nets, node_values, sample_graph
 
     rows = _touched_rows(op, np.array([0]))
     graph = sample_graph(op, rows, samples)

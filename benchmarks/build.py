@@ -1,4 +1,4 @@
-"""Build benchmark (issues 3 and 6): the time to build M, to evaluate M @ P, to make the B-rep,
+"""Build benchmark: the time to build M, to evaluate M @ P, to make the B-rep,
 to write the STEP, the end-to-end ``nupatch build`` (a fresh process, as a user runs it), and the
 OpenCASCADE floor: the same Bézier faces (same degrees) made directly with OCC, without shared
 topology, and written to STEP, in the same run.
@@ -26,8 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import patching  # noqa: E402
 from export.brep import to_shape  # noqa: E402
 from export.step import write_step  # noqa: E402
-from patching.obj import write_obj  # noqa: E402
-from patching.primitives import torus_grid  # noqa: E402
+from export import write_obj  # noqa: E402
+from patching.mesh.primitives import torus_grid  # noqa: E402
 
 
 def timed(fn, *args):
@@ -65,7 +65,7 @@ def occ_floor(nets: list[np.ndarray], path: Path) -> tuple[float, float]:
 def ep_mesh(kind: str):
     import trimesh
 
-    from patching.subdivision import subdivide
+    from patching.subdivision.catmark import subdivide
 
     if kind == "refined":
         base = trimesh.creation.icosahedron()
@@ -84,7 +84,7 @@ def ep_mesh(kind: str):
 
 
 def creased_torus() -> patching.ControlMesh:
-    """The 100 x 100 torus with ten infinitely sharp crease rings (issue 4)."""
+    """The 100 x 100 torus with ten infinitely sharp crease rings."""
     m, n = 100, 100
     rng = np.random.default_rng(0)
     base = torus_grid(m, n, rng.uniform(1, 20, m), rng.uniform(1, 20, n))
@@ -115,7 +115,7 @@ def report(mesh: patching.ControlMesh, title: str) -> None:
         _, t_cold = timed(patching.build_operator, mesh)  # first build: local solves not cached yet
         # warm: the best of three builds (the machine is shared; one build is noisy), each
         # operator dropped before the next build, as a script rebuilding M would (holding all
-        # three measured 0.73 to 0.83 s against 0.41 to 0.46 s on the half-EP mesh, session 5)
+        # three measured 0.73 to 0.83 s against 0.41 to 0.46 s on the half-EP mesh)
         t_m = np.inf
         for _ in range(3):
             op = None
@@ -162,7 +162,7 @@ def report(mesh: patching.ControlMesh, title: str) -> None:
 
 
 def run_pack() -> None:
-    """Packed multi-span faces against one face a patch (issue 5): ``benchmarks/pack.py``'s
+    """Packed multi-span faces against one face a patch: ``benchmarks/pack.py``'s
     two models, the 10k-face torus and an L polycube with EPs."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import pack

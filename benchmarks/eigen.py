@@ -10,7 +10,7 @@ and the time per matrix (uncached).
 
     .venv/bin/python benchmarks/eigen.py [samples]        (default 40 per cell; 2 cores: small)
 
-Why two helpers disagreed (issue 7): this table found 1 > lambda = lambda > |others| failing
+Why two helpers disagreed: this table found 1 > lambda = lambda > |others| failing
 for some draws at n = 5, 8, 12, 16 from r = 50 up, while ``benchmarks/subdivide.py --report``
 found it holding up to "ratio 1000".  Both measured the same matrix: subdivide.py took
 ``local_subdivision_matrix`` itself, and S's block on an EP's 1-ring is that matrix to 1e-14
@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from patching import eigen_polyhedron as ep
+from patching.rules import eigen_polyhedron as ep
 
 VALENCES = [3, 5, 6, 7, 8, 10, 12, 16]
 RATIOS = [2, 5, 10, 20, 50, 100, 1e3, 1e4]

@@ -1,4 +1,4 @@
-"""Fold census (issue 6): how often the surface folds over itself on OpenSubdiv's catmark shapes
+"""Fold census: how often the surface folds over itself on OpenSubdiv's catmark shapes
 with random strip intervals, and where.
 
     .venv/bin/python benchmarks/folds.py [--ratios 5 20] [--seeds 4] [--samples 17] [--g1-solve joint seed]
@@ -11,7 +11,7 @@ Folded patches are split by degree:
 
 * bicubic: a face whose 4 x 4 stencil holds no EP, the exact B-spline of its control points and
   knots (tests/test_exactness.py), so the fold belongs to that spline: any NURBS system gives it;
-* bi-quintic: a face at an EP, whose G1 construction (seed 002 section 3.4) made the fold.
+* bi-quintic: a face at an EP, whose G1 construction ([FSLYJ] sec. 3.4) made the fold.
 
 Shapes refused in one line (non-manifold input, random intervals around n-gons) are counted
 apart.  Prints one line per shape that folds at some draw and a summary per ratio.
@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import patching  # noqa: E402
 from patching.errors import NupatchError  # noqa: E402
-from patching.evaluation import normal_turning  # noqa: E402
+from patching.evaluation.sampling import normal_turning  # noqa: E402
 from tests.conftest import shape_files  # noqa: E402
 from tests.test_g1_patches import with_random_intervals  # noqa: E402
 

@@ -24,7 +24,7 @@ from export.brep import to_shape
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 
 from export.formats import ANGULAR_DEFLECTION, FORMATS, RELATIVE_TOLERANCE, tessellate, write
-from patching.primitives import torus_grid
+from patching.mesh.primitives import torus_grid
 
 
 def occ_writer(fmt: str, shape, path: Path):

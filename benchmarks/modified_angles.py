@@ -1,6 +1,6 @@
-"""Seed 001's claim for its modified eigen-polyhedron angles, re-measured (issue 7).
+"""[ZTL]'s claim for its modified eigen-polyhedron angles, re-measured.
 
-What seed 001 states (Discussion): "To verify the existence of a single local maximum, five
+What [ZTL] states (Discussion): "To verify the existence of a single local maximum, five
 levels of refinement were applied for each test case, and it was confirmed that the resulting
 control mesh had a single vertex whose z-coordinate was larger than that of all of the
 neighbors ... A million different EPs were tested using randomly generated knot intervals of
@@ -14,11 +14,11 @@ neighbours.  This file measures it with ``subdivision_operator`` (seed rules, th
 ``eigen_polyhedron``'s local matrix) on a polar disk of three rings of regular quads around
 the EP whose strips carry the spoke intervals (``benchmarks/subdivide.py``'s disk):
 
-1. the configurations of seed 001's figures, standard vs modified angles, and with the two
-   readings of the vertex rule's ``f_i`` (seed 002: ``d_{i-1} d_{i+2}``, the implemented one;
-   seeds 000/001 print a product over ``j != i, i+1``), since the vertex row enters the
+1. the configurations of [ZTL]'s figures, standard vs modified angles, and with the two
+   readings of the vertex rule's ``f_i`` ([FSLYJ]: ``d_{i-1} d_{i+2}``, the implemented one;
+   [TLC] and [ZTL] print a product over ``j != i, i+1``), since the vertex row enters the
    blending function too;
-2. seed 001's random test, scaled down: intervals uniform in [1e-6, 1] (the paper's law) and
+2. [ZTL]'s random test, scaled down: intervals uniform in [1e-6, 1] (the paper's law) and
    log-uniform in [1e-4, 1] (larger ratios), n = 3, 5, 6, 7, 8.
 
 A maximum is a vertex whose z exceeds every neighbour's by more than 1e-12 of the function's
@@ -30,15 +30,15 @@ admissible bilinear root (UnsupportedError).
 
 Measured (this machine, 60 samples per cell, about 4 minutes):
 
-* The implementation follows seed 001's text: ``eigen_angles(..., "modified")`` equals a
+* The implementation follows [ZTL]'s text: ``eigen_angles(..., "modified")`` equals a
   literal transcription of eq. (10) and every branch of its case analysis to 1e-13
   (tests/test_eigen_polyhedron.py::test_modified_angles_follow_seed001_text_in_every_branch);
   nothing to fix there.  The rest of the scheme (lengths, vertex rule, bilinear solves) is the
-  same for both angle choices, as seed 001 says ("only those angles ... were modified").
+  same for both angle choices, as [ZTL] says ("only those angles ... were modified").
 * Figures (maxima after five steps, standard / modified, implemented f_i): Fig 1 1/1, Fig 5
   1/2, Fig 6 1/1, Fig 7 10/5, Fig 8 1/2, Fig 9 3/3, Fig 10 1/1, Fig 12 1/2.  With the product
   f_i: Fig 5 2/3, Fig 7 10/5, Fig 8 12/2, Fig 12 9/4 (the product reading makes standard
-  angles much worse at large ratios and is not what seed 001 used either: it too gives the
+  angles much worse at large ratios and is not what [ZTL] used either: it too gives the
   modified angles extra maxima).  So the modified angles help where the ratio is extreme (Fig
   7, 1e4) and with the product f_i, and cost a second, very shallow maximum on Figs 5, 8 and
   12 (Fig 5: two maxima 7e-5 of the height above their neighbours, mirror images about the
@@ -46,7 +46,7 @@ Measured (this machine, 60 samples per cell, about 4 minutes):
 * The criterion itself is fragile: Fig 5 modified counts 1, 2, 1, 2 maxima after 4, 5, 6, 7
   steps, Fig 8 standard 1, 1, 2, 3: the function is nearly flat at its top, and "after five
   levels" samples it at one arbitrary resolution.
-* Seed 001's random test (uniform [1e-6, 1], the paper's law; median spoke ratio 3-13):
+* [ZTL]'s random test (uniform [1e-6, 1], the paper's law; median spoke ratio 3-13):
   single maximum in 100/98, 97/93, 95/97, 90/88, 85/90 % of EPs (standard/modified) for
   n = 3, 5, 6, 7, 8.  Log-uniform [1e-4, 1] (median ratio 124-1900): 97/93, 37/50, 73/58,
   42/32, 13/17 %; n = 8 had 10/9 undefined rules.  The paper reports a single maximum in all
@@ -70,9 +70,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from patching import eigen_polyhedron as ep  # noqa: E402
 from patching.errors import UnsupportedError  # noqa: E402
-from patching.mesh import from_arrays  # noqa: E402
-from patching.subdivision import subdivision_operator  # noqa: E402
-from patching.topology import Topology  # noqa: E402
+from patching.mesh.control_mesh import from_arrays  # noqa: E402
+from patching.subdivision.catmark import subdivision_operator  # noqa: E402
+from patching.topology.tables import Topology  # noqa: E402
 from subdivide import _blending_disk  # noqa: E402
 
 FIGURES = {
@@ -104,7 +104,7 @@ def maxima(mesh, levels: int = LEVELS, angles: str = "standard") -> tuple[int, i
 
 
 def _product_spoke_terms(intervals):
-    """spoke_terms with seeds 000/001's printed ``f_i = prod_{j != i, i+1} d_j``."""
+    """spoke_terms with [TLC] and [ZTL]'s printed ``f_i = prod_{j != i, i+1} d_j``."""
     d = np.asarray(intervals, dtype=np.float64)
     d = d[None] if d.ndim == 1 else d
     n = d.shape[-1]
@@ -145,7 +145,7 @@ def _cell(d, angles):
 
 
 def figures_table() -> None:
-    print(f"1. Seed 001's figures: local maxima of the EP's blending function after {LEVELS} steps "
+    print(f"1. [ZTL]'s figures: local maxima of the EP's blending function after {LEVELS} steps "
           f"(strict count in brackets where it differs)")
     print(f"  {'configuration':38} {'f_i = d_(i-1) d_(i+2)':>26} {'f_i = prod_(j != i,i+1) d_j':>30}")
     print(f"  {'':38} {'standard':>12} {'modified':>13} {'standard':>15} {'modified':>14}")
@@ -163,7 +163,7 @@ LAWS = {
 
 
 def random_table(samples: int) -> None:
-    print(f"\n2. Seed 001's random test, {samples} EPs per cell (the paper: 1e6 in all): share with a "
+    print(f"\n2. [ZTL]'s random test, {samples} EPs per cell (the paper: 1e6 in all): share with a "
           f"single maximum, standard / modified angles; 'undef': rule undefined; median and "
           f"largest spoke ratio max/min")
     print(f"  {'law':24} {'n':>3} {'single (std)':>13} {'single (mod)':>13} {'undef s/m':>10} "

@@ -21,7 +21,7 @@ import patching
 from export.brep import to_shape
 from export.pack import patch_spans, to_packed_shape
 from export.step import write_step
-from patching.primitives import polycube, torus_grid
+from patching.mesh.primitives import polycube, torus_grid
 
 
 def ell(divisions: int) -> patching.ControlMesh:

@@ -28,7 +28,7 @@ def meshes():
     a semi-sharp loop (tests/test_adaptive.py), and OpenSubdiv shapes with semi-sharp tags."""
     sys.path.insert(0, str(REPO))
     import patching
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
     from tests.test_adaptive import cube_level2
 
     for kind, edges in TORUS_CREASES.items():
@@ -61,17 +61,17 @@ def main(argv: list[str]) -> None:
         print(json.dumps(run_one(int(argv[1]), argv[2])))
         return
     limit = int(argv[argv.index("--max-global") + 1]) if "--max-global" in argv else 25_000
-    from patching.operator import _refinement
-    from patching.topology import Topology
+    from patching.operator.refinement import refinement_plan
+    from patching.topology.tables import Topology
 
     print("| mesh | faces | global faces | global: patches, s, MB | auto: path, patches, s, MB |")
     print("| --- | --- | --- | --- | --- |")
     for i, (name, mesh) in enumerate(meshes()):
-        steps, adaptive = _refinement(Topology(mesh))
+        steps, adaptive = refinement_plan(Topology(mesh))
         n_global = mesh.n_faces * 4**steps
         cells = []
         for refinement in ("global", "auto"):
-            if refinement == "global" and (n_global > limit or _refinement(Topology(mesh), "global")[1]):
+            if refinement == "global" and (n_global > limit or refinement_plan(Topology(mesh), "global")[1]):
                 cells.append("skipped")
                 continue
             out = subprocess.run([sys.executable, __file__, "--one", str(i), refinement], capture_output=True, text=True)

@@ -1,6 +1,6 @@
-"""Speed of sharp features through EPs (issue 4): the machined bracket (models/) refined by
+"""Speed of sharp features through EPs: the machined bracket (models/) refined by
 the seed's sharp subdivision rules, so that it keeps its creases, corners and darts at every
-scale, with the sector EPs of seed 002 section 4.2 at its concave corners.
+scale, with the sector EPs of [FSLYJ] sec. 4.2 at its concave corners.
 
     .venv/bin/python benchmarks/sharp.py [--steps 3]
 
@@ -20,8 +20,8 @@ sys.path.insert(0, str(ROOT))
 
 import patching  # noqa: E402
 from benchmarks.build import report, timed  # noqa: E402
-from patching.features import features  # noqa: E402
-from patching.subdivision import subdivide  # noqa: E402
+from patching.topology.features import features  # noqa: E402
+from patching.subdivision.catmark import subdivide  # noqa: E402
 
 
 def main() -> None:

@@ -1,4 +1,4 @@
-"""Subdivision speed (issue 7 targets: >= 1M output faces/s for the sparse product S @ P, and
+"""Subdivision speed (targets: >= 1M output faces/s for the sparse product S @ P, and
 construction of S no slower than 200k faces/s).  Prints a small table.
 
 Meshes: a 100 x 100 torus grid (10,000 quads) with uniform and with random non-uniform
@@ -7,7 +7,7 @@ about 10k faces (EPs, creases, boundaries) when the shapes folder is there.  The
 time in the same run is one scipy CSR matrix-vector product of the same size (nnz), our floor.
 
 Cold construction (every EP and tagged vertex a new configuration), output faces/s on this
-machine: the bilinear face and edge solves of seed 000 eqs. 18-28 were one Python call per face
+machine: the bilinear face and edge solves of [TLC] eqs. 18-28 were one Python call per face
 and edge of every vertex (cached by configuration); they are now one vectorised numpy call per
 (valence) group of EPs and per (kind, shape) group of tagged vertices
 (``eigen_polyhedron.bilinear_rule``):
@@ -16,7 +16,7 @@ and edge of every vertex (cached by configuration); they are now one vectorised 
     pawn x2, random intervals (589 solves)  1.6e5     9.0e5
     icosphere x1, random (7682 EPs)         1.1e4     3.3e5   (target 2e5)
 
-Run: .venv/bin/python benchmarks/subdivide.py [--report]  (--report adds the EP eigen-structure\nby interval ratio and seed 001's blending-function maxima, standard vs modified angles)
+Run: .venv/bin/python benchmarks/subdivide.py [--report]  (--report adds the EP eigen-structure\nby interval ratio and [ZTL]'s blending-function maxima, standard vs modified angles)
 """
 
 from __future__ import annotations
@@ -30,9 +30,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from patching.obj import read_obj  # noqa: E402
-from patching.primitives import torus_grid  # noqa: E402
-from patching.subdivision import _Context, _operator, subdivide, subdivision_operator  # noqa: E402
+from patching.mesh.obj import read_obj  # noqa: E402
+from patching.mesh.primitives import torus_grid  # noqa: E402
+from patching.subdivision.catmark import _operator, subdivide, subdivision_operator  # noqa: E402
+from patching.subdivision.context import _Context  # noqa: E402
 
 SHAPES = Path(__file__).resolve().parent.parent.parent / "shared" / "opensubdiv-shapes"
 
@@ -70,8 +71,8 @@ def _ep_sphere():
     intervals: every EP a new eigen-polyhedron configuration, the worst case for building S."""
     import trimesh
 
-    from patching.mesh import from_arrays
-    from patching.subdivision import _Context
+    from patching.mesh.control_mesh import from_arrays
+    from patching.subdivision.context import _Context
 
     ico = trimesh.creation.icosphere(subdivisions=4)
     mesh = _random_intervals(subdivide(from_arrays(np.asarray(ico.vertices), np.asarray(ico.faces)), steps=1))
@@ -84,7 +85,7 @@ def _random_intervals(mesh, ratio=3.0, seed=0):
     eigen-polyhedron configuration (no cache hits), the slow case."""
     from dataclasses import replace
 
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     rng = np.random.default_rng(seed)
@@ -99,7 +100,7 @@ def main() -> None:
         rules = "seed"
         if isinstance(mesh, tuple):
             mesh, rules = mesh
-        from patching import eigen_polyhedron
+        from patching.rules import eigen_polyhedron
 
         eigen_polyhedron._solve.cache_clear()  # cold: every EP configuration solved afresh
         t_cold, _ = best(lambda: _operator(_Context(mesh), rules, "standard"), repeat=1)
@@ -124,7 +125,7 @@ def main() -> None:
 
 
 # ------------------------------------------------------------------------------------------
-# Measurements for the report (issue 7 acceptance): not timings, but printed beside them.
+# Measurements for the report: not timings, but printed beside them.
 
 
 def eigen_ratio_table(trials: int = 20) -> None:
@@ -136,9 +137,9 @@ def eigen_ratio_table(trials: int = 20) -> None:
     for why the two benchmarks once disagreed)."""
     from eigen import LAWS, double_subdominant
 
-    from patching import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
     from patching.errors import UnsupportedError
-    from patching.mesh import from_arrays
+    from patching.mesh.control_mesh import from_arrays
 
     ratios = (2, 5, 20, 50, 100, 1000)
     draw = LAWS["1, r, log-uniform"]
@@ -172,7 +173,7 @@ def eigen_ratio_table(trials: int = 20) -> None:
 def _ep_block(mesh, S):
     """S's rows and columns of the 1-ring [V, E_0.., F_0..] of the mesh's one EP, and its spoke
     intervals."""
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     v = int(np.flatnonzero((t.valence != 4) & ~t.vertex_is_boundary)[0])
@@ -183,7 +184,7 @@ def _ep_block(mesh, S):
 
 
 def blending_maxima_table() -> None:
-    """Seed 001's single-maximum claim, standard vs modified angles, on its figures' configurations
+    """[ZTL]'s single-maximum claim, standard vs modified angles, on its figures' configurations
     (``benchmarks/modified_angles.py``, which also runs the paper's random test)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from modified_angles import figures_table

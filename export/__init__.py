@@ -1,9 +1,12 @@
-"""nupatch's edge to CAD: BezierSurface -> OpenCASCADE B-rep -> files (STEP).
+"""nupatch's edge to CAD: BezierSurface -> OpenCASCADE B-rep -> files (STEP and others).
 
-Public API (STYLE 4): ``to_shape`` (B-rep), ``to_step`` (build and write atomically),
-``to_build123d`` / ``to_cadquery`` (the B-rep as a CAD library's object), ``write`` (any
-format of ``export.formats``),
-``check_continuity`` (validity, gaps and normal jumps of a B-rep or STEP file).
+Public API: ``build_file`` (a mesh file to an output file, as ``nupatch build`` does),
+``to_shape`` (B-rep), ``to_step`` (write atomically), ``to_build123d`` / ``to_cadquery`` (the
+B-rep as a CAD library's object), ``write`` (any format of ``export.formats``), ``write_obj``
+(a control mesh with its tags), ``check_continuity`` (validity, gaps and normal jumps of a
+B-rep or STEP file).  Modules: ``pipeline`` (read -> build -> B-rep -> write), ``brep`` and
+``pack`` (B-reps), ``formats`` (the writers' registry), ``step``, ``continuity``, ``render``,
+``cad``, ``atomic`` (atomic writes), ``tolerances`` (every tolerance, once), ``cli``.
 """
 
 from __future__ import annotations
@@ -11,14 +14,23 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from patching.options import BuildOptions
 from patching.surface import BezierSurface
 
-__all__ = ["to_shape", "to_step", "to_build123d", "to_cadquery", "write", "write_step", "read_step", "check_continuity"]
+__all__ = ["build_file", "to_shape", "to_step", "to_build123d", "to_cadquery", "write", "write_obj", "write_step", "read_step", "check_continuity"]
+
+
+def build_file(mesh, out=None, format: str | None = None, *, options: BuildOptions | None = None, pack: bool = False,
+               tolerance: float | None = None) -> Path:
+    """Build the mesh file ``mesh`` and write ``out`` (``export.pipeline.build_file``)."""
+    from export.pipeline import build_file as _build_file
+
+    return _build_file(mesh, out, format, options=options, pack=pack, tolerance=tolerance)
 
 
 def to_shape(surface: BezierSurface):
     """The B-rep (TopoDS_Shape) of a surface: a solid when closed, else a shell."""
-    from .brep import to_shape as _to_shape
+    from export.brep import to_shape as _to_shape
 
     return _to_shape(surface)
 
@@ -26,46 +38,56 @@ def to_shape(surface: BezierSurface):
 def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
     """Build the B-rep of ``surface`` and write it atomically to ``path`` (millimetres, product
     named ``surface.name``)."""
-    from .step import write_step as _write_step
+    from export.step import write_step as _write_step
 
     return _write_step(to_shape(surface), path, surface.name)
 
 
-def to_build123d(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
+def to_build123d(source, options: BuildOptions | None = None, **option_fields: str):
     """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file."""
-    from .cad import to_build123d as _to_build123d
+    from export.cad import to_build123d as _to_build123d
 
-    return _to_build123d(source, angles, anchors, **options)
+    return _to_build123d(source, options, **option_fields)
 
 
-def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
+def to_cadquery(source, options: BuildOptions | None = None, **option_fields: str):
     """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape."""
-    from .cad import to_cadquery as _to_cadquery
+    from export.cad import to_cadquery as _to_cadquery
 
-    return _to_cadquery(source, angles, anchors, **options)
+    return _to_cadquery(source, options, **option_fields)
 
 
 def write(surface: BezierSurface, path: str | os.PathLike, format: str | None = None, *, tolerance: float | None = None) -> Path:
     """Write ``surface`` atomically as step, iges, brep, stl, glb or obj (default: from the
     suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
-    from .formats import write as _write
+    from export.formats import write as _write
 
     return _write(surface, path, format, tolerance=tolerance)
 
 
+def write_obj(mesh, path: str | os.PathLike, comment: str = "") -> None:
+    """Write a control mesh with its tags as OBJ (``patching.mesh.format_obj``), atomically, so
+    that ``patching.read_mesh`` reads it back."""
+    from patching.mesh import format_obj
+
+    from .atomic import atomic_write_text
+
+    atomic_write_text(path, format_obj(mesh, comment))
+
+
 def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:
-    from .step import write_step as _write_step
+    from export.step import write_step as _write_step
 
     return _write_step(shape, path, product_name)
 
 
 def read_step(path: str | os.PathLike):
-    from .step import read_step as _read_step
+    from export.step import read_step as _read_step
 
     return _read_step(path)
 
 
 def check_continuity(shape_or_path, **kwargs):
-    from .continuity import check_continuity as _check
+    from export.continuity import check_continuity as _check
 
     return _check(shape_or_path, **kwargs)

@@ -1,4 +1,4 @@
-"""Bézier patches to an OpenCASCADE B-rep with shared topology (DESIGN 3).
+"""Bézier patches to an OpenCASCADE B-rep with shared topology (docs/surface.md).
 
 Every patch becomes one face on a ``Geom_BezierSurface``; every ``PatchTopology`` vertex and
 edge id becomes exactly one ``TopoDS_Vertex`` / ``TopoDS_Edge`` that all faces using it share,
@@ -54,23 +54,20 @@ from OCP.TopoDS import (
     TopoDS_Wire,
 )
 
+from export.tolerances import RELATIVE_TOLERANCE
 from patching.errors import MeshError
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
-    "BrepError", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
+    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
     "refuse_no_volume", "refuse_round_off", "shape_face_rows",
 ]
-
-#: Relative tolerance of vertices, edges and faces, times ``BezierSurface.size``.
-RELATIVE_TOLERANCE = 1e-7
-
 
 class BrepError(RuntimeError):
     """OpenCASCADE rejected a B-rep built from a consistent surface: a bug, not bad input."""
 
 
-def _side_row(net: np.ndarray, side: int) -> np.ndarray:
+def side_row(net: np.ndarray, side: int) -> np.ndarray:
     """(d+1, 3) boundary coefficients of ``side`` of a (d+1, d+1, 3) net, in the side's direction."""
     if side == 0:
         return net[:, 0]
@@ -86,7 +83,7 @@ def shape_tolerance(surface: BezierSurface) -> float:
     return max(Precision.Confusion_s(), RELATIVE_TOLERANCE * float(surface.size))
 
 
-def _bezier_surface(net: np.ndarray) -> Geom_BezierSurface:
+def bezier_surface(net: np.ndarray) -> Geom_BezierSurface:
     n = net.shape[0]
     poles = TColgp_Array2OfPnt(1, n, 1, n)
     for i in range(n):
@@ -96,14 +93,14 @@ def _bezier_surface(net: np.ndarray) -> Geom_BezierSurface:
     return Geom_BezierSurface(poles)
 
 
-def _bezier_curve(row: np.ndarray) -> Geom_BezierCurve:
+def bezier_curve(row: np.ndarray) -> Geom_BezierCurve:
     poles = TColgp_Array1OfPnt(1, len(row))
     for i, (x, y, z) in enumerate(row):
         poles.SetValue(i + 1, gp_Pnt(float(x), float(y), float(z)))
     return Geom_BezierCurve(poles)
 
 
-def _pcurve(side: int, reversed_: bool) -> Geom2d_Line:
+def pcurve(side: int, reversed_: bool) -> Geom2d_Line:
     """Line on the parameter square whose parameter w in [0, 1] is the edge's Bézier parameter."""
     a = CORNER_PARAMETERS[side]
     b = CORNER_PARAMETERS[(side + 1) % 4]
@@ -232,7 +229,7 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
                 make_vertex(vid, corners[c])
     for i in [i for i, v in enumerate(pieces.vertex[:, 0].tolist()) if vertices[v] is None]:
         row, k = divmod(int(pieces.side[i]), 4)
-        make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(_side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
+        make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
 
     # Edges: 3D curve from each edge's source piece (PatchTopology), between the shared vertices.
     edges = _make_edges(builder, pieces, topo.n_edges, nets, vertices, tol)
@@ -244,15 +241,15 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     )
     for row, net in enumerate(nets):
         f = TopoDS_Face()
-        builder.MakeFace(f, _bezier_surface(net), tol)
+        builder.MakeFace(f, bezier_surface(net), tol)
         wire = []
         for k in range(4):
             for i in range(indptr[4 * row + k], indptr[4 * row + k + 1]):
                 if whole[i]:
-                    curve = _pcurve(k, reversed_[i])
+                    curve = pcurve(k, reversed_[i])
                 else:
                     u0, u1 = ranges[i][::-1] if reversed_[i] else ranges[i]
-                    curve = _line(_side_point(k, u0), _side_point(k, u1))
+                    curve = line_2d(_side_point(k, u0), _side_point(k, u1))
                 wire.append((edge_of[i], reversed_[i], curve))
         bound_face_pieces(builder, f, wire, edges, tol)
         faces.append(f)
@@ -332,7 +329,7 @@ def _side_point(side: int, u: float) -> np.ndarray:
     return a + u * (b - a)
 
 
-def _line(a, b) -> Geom2d_BezierCurve:
+def line_2d(a, b) -> Geom2d_BezierCurve:
     """Degree-1 pcurve from a to b with parameter w in [0, 1]."""
     poles = TColgp_Array1OfPnt2d(1, 2)
     poles.SetValue(1, gp_Pnt2d(float(a[0]), float(a[1])))
@@ -381,14 +378,14 @@ def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol
     for eid in np.argsort(first, kind="stable").tolist():
         i = int(source[eid])
         row, k = divmod(side[i], 4)
-        curve_row = _side_row(nets[row], k)
+        curve_row = side_row(nets[row], k)
         if not whole[i]:
             curve_row = _sub_row(curve_row, *ranges[i])
         v0, v1 = vertex[i]
         if reversed_[i]:  # the contract makes the source piece forward; follow it regardless
             curve_row, v0, v1 = curve_row[::-1], v1, v0
         e = TopoDS_Edge()
-        builder.MakeEdge(e, _bezier_curve(curve_row), tol)
+        builder.MakeEdge(e, bezier_curve(curve_row), tol)
         builder.Add(e, vertices[v0].Oriented(TopAbs_FORWARD))
         builder.Add(e, vertices[v1].Oriented(TopAbs_REVERSED))
         edges[eid] = e

@@ -1,11 +1,10 @@
-"""The surface as an object of a CAD scripting library: build123d and cadquery (issue 5).
+"""The surface as an object of a CAD scripting library: build123d and cadquery.
 
 Both libraries wrap OpenCASCADE's ``TopoDS_Shape`` in their own classes; the environment holds
 one OCP module (README, "What gets installed"), so the B-rep of ``export.brep.to_shape`` is
 handed over as it is, without a file or a copy: a closed surface is a ``Solid``, an open one a
 ``Shell``.  The source may be a ``BezierSurface``, a ``ControlMesh`` or the path of a mesh file;
-``angles``, ``anchors`` and any further keyword of ``patching.build`` (``interior``,
-``g1_solve``, ``refinement``) are passed to it for the last two.
+for the last two, a ``BuildOptions`` (or its fields as keywords) chooses how it is built.
 
 The libraries are imported on first use (cadquery alone takes about a second to import).
 """
@@ -16,6 +15,7 @@ import os
 
 import patching
 from patching.mesh import ControlMesh
+from patching.options import BuildOptions
 from patching.surface import BezierSurface
 
 __all__ = ["as_surface", "to_build123d", "to_cadquery"]
@@ -23,32 +23,28 @@ __all__ = ["as_surface", "to_build123d", "to_cadquery"]
 
 def as_surface(
     source: BezierSurface | ControlMesh | str | os.PathLike,
-    angles: str = "optimized",
-    anchors: str = "eigen-polyhedron",
-    **options,
+    options: BuildOptions | None = None,
+    **option_fields: str,
 ) -> BezierSurface:
-    """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ)."""
+    """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ),
+    built with ``options`` (or its fields as keywords: angles, anchors, interior, g1_solve,
+    refinement)."""
     if isinstance(source, BezierSurface):
         return source
     if isinstance(source, (str, os.PathLike)):
         source = patching.read_mesh(source)
     if isinstance(source, ControlMesh):
-        return patching.build(source, angles=angles, anchors=anchors, **options)
+        return patching.build(source, BuildOptions.of(options, **option_fields))
     raise TypeError(f"expected a BezierSurface, a ControlMesh or a mesh path, not {type(source).__name__}")
 
 
-def _shape(source, angles: str, anchors: str, options: dict):
-    from .brep import to_shape
+def _shape(source, options: BuildOptions | None, option_fields: dict):
+    from export.brep import to_shape
 
-    return to_shape(as_surface(source, angles, anchors, **options))
+    return to_shape(as_surface(source, options, **option_fields))
 
 
-def to_build123d(
-    source: BezierSurface | ControlMesh | str | os.PathLike,
-    angles: str = "optimized",
-    anchors: str = "eigen-polyhedron",
-    **options,
-):
+def to_build123d(source: BezierSurface | ControlMesh | str | os.PathLike, options: BuildOptions | None = None, **option_fields: str):
     """A ``build123d.Solid`` (closed surface) or ``build123d.Shell`` (open surface).
 
     The object is valid (``BRepCheck_Analyzer``, checked by ``to_shape``) and takes part in
@@ -57,21 +53,16 @@ def to_build123d(
     import build123d
     from OCP.TopAbs import TopAbs_SOLID
 
-    shape = _shape(source, angles, anchors, options)
+    shape = _shape(source, options, option_fields)
     if shape.ShapeType() == TopAbs_SOLID:
         return build123d.Solid(shape)
     return build123d.Shell(shape)
 
 
-def to_cadquery(
-    source: BezierSurface | ControlMesh | str | os.PathLike,
-    angles: str = "optimized",
-    anchors: str = "eigen-polyhedron",
-    **options,
-):
+def to_cadquery(source: BezierSurface | ControlMesh | str | os.PathLike, options: BuildOptions | None = None, **option_fields: str):
     """A ``cadquery.Workplane`` on the XY plane holding one ``cadquery.Solid`` (closed surface)
     or ``cadquery.Shell`` (open surface); ``.val()`` gives that Shape."""
     import cadquery
 
-    shape = cadquery.Shape.cast(_shape(source, angles, anchors, options))
+    shape = cadquery.Shape.cast(_shape(source, options, option_fields))
     return cadquery.Workplane("XY").add(shape)

@@ -1,4 +1,4 @@
-"""The ``nupatch`` command line (DESIGN 4): a thin layer over the public functions.
+"""The ``nupatch`` command line (docs/cli.md): a thin layer over the public functions.
 
 Bad input: one line ``nupatch: error: <what> (<where>)`` on stderr, exit 2, no output file.
 Any other exception is a bug: one line asking for a report, exit 1 (``--debug`` shows it).
@@ -12,19 +12,15 @@ import os
 import sys
 import time
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import patching
-from patching.atomic import check_output_path
-from patching.angle_configuration import MODES
+from export.atomic import check_output_path
 from patching.errors import InputFileError, NupatchError
-from patching.operator import ANCHOR_RULES, G1_SOLVES
+from patching.options import CHOICES, BuildOptions
 
 __all__ = ["main"]
 
-ANGLES = MODES
-ANCHORS = ANCHOR_RULES
 #: export.continuity's defaults, repeated so that parsing the command line does not import
 #: OpenCASCADE (1.5 s); tests/test_continuity_table.py checks that they agree.
 CHECK_DEFAULTS = {"worst": 5, "sharp_angle_deg": 10.0, "g1_tolerance_deg": 1e-5}
@@ -86,90 +82,11 @@ class _Bar:
         self.bar.close()
 
 
-@dataclass(frozen=True)
-class BuildJob:
-    """One mesh to build and write: what a worker process receives (picklable)."""
-
-    mesh: str
-    out: str
-    fmt: str
-    tolerance: float | None
-    angles: str
-    anchors: str
-    pack: bool = False
-    g1_solve: str = "joint"
-
-
-#: Formats that carry the exact B-rep, so that --pack applies to them.
-EXACT_FORMATS = ("step", "iges", "brep")
-#: Stages of one build, for the progress bar.
-STAGES = ("reading", "patches", "B-rep", "writing")
-
-
-def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
-    """Read, build, make the B-rep and write one mesh; returns (faces, patches).  ``stage(name)``
-    is called as each stage starts."""
-    from export.brep import to_shape
-    from export.formats import write
-
-    stage(STAGES[0])
-    mesh = patching.read_mesh(job.mesh)
-    stage(STAGES[1])
-    pack = job.pack and job.fmt in EXACT_FORMATS
-    # --pack merges the patches of one mesh: semi-sharp tags then take the global steps while
-    # they fit (patching.operator._refinement), as before the adaptive path became the default.
-    refinement = "global" if pack else "auto"
-    surface = patching.build(mesh, angles=job.angles, anchors=job.anchors, refinement=refinement, g1_solve=job.g1_solve)
-    stage(STAGES[2])
-    if pack:
-        from export.pack import patch_spans, to_packed_shape
-
-        shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
-    else:
-        shape = to_shape(surface)
-    _warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
-    stage(f"{STAGES[3]} {job.fmt}")
-    write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
-    return mesh.n_faces, surface.n_patches
-
-
-def _warn_folds(surface: patching.BezierSurface) -> None:
-    """A NupatchWarning when a patch folds over itself (``evaluation.normal_turning`` below 0
-    on 9 x 9 samples): G1 holds, but the surface is not what a CAD user wants, and the cure
-    (finer control mesh near the EPs) is theirs to apply."""
-    from patching.evaluation import normal_turning
-
-    _, turning = normal_turning(surface, samples=9)
-    folded = int((turning < 0.0).sum())
-    if folded:
-        warnings.warn(
-            patching.NupatchWarning(
-                f"{folded} of {turning.size} patches fold over themselves: next to extraordinary points the "
-                "knot intervals run against the control net's spacing; one `nupatch subdivide` step of the mesh "
-                "usually removes such folds"
-            )
-        )
-
-
-def _build_worker(job: BuildJob) -> tuple[str, str, list[str]]:
-    """Run one job in a worker process: ("ok" | "error" | "bug", message, warnings); never raises."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", patching.NupatchWarning)
-        try:
-            start = time.perf_counter()
-            faces, patches = run_build(job)
-            status, message = "ok", f"{job.mesh}: {patches} patches from {faces} faces, wrote {job.out} ({job.fmt}) in {time.perf_counter() - start:.2f} s"
-        except NupatchError as exc:
-            status, message = "error", f"error: {exc}"
-        except Exception as exc:  # a bug, reported on its own line like the others
-            status, message = "bug", f"internal error: {type(exc).__name__}: {exc} ({job.mesh}; please report)"
-    notes = [str(w.message) for w in caught if issubclass(w.category, patching.NupatchWarning)]
-    return status, message, notes
-
-
-def _jobs(args: argparse.Namespace) -> list[BuildJob]:
+def _jobs(args: argparse.Namespace) -> list:
     """One job per mesh, every option and output path checked before any work."""
-    from export.formats import check_tolerance, format_of
+    from export.formats import format_of
+    from export.pipeline import BuildJob
+    from export.tolerances import check_tolerance
 
     if args.tolerance is not None:
         check_tolerance(args.tolerance)
@@ -194,11 +111,18 @@ def _jobs(args: argparse.Namespace) -> list[BuildJob]:
         seen[out.resolve()] = name
         fmt = format_of(out, args.format)
         check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack, args.g1_solve))
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, _options(args), args.pack))
     return jobs
 
 
+def _options(args: argparse.Namespace) -> BuildOptions:
+    """The BuildOptions of ``build`` / ``render``'s flags (validated once, there)."""
+    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
+
+
 def cmd_build(args: argparse.Namespace) -> int:
+    from export.pipeline import STAGES, run_build
+
     jobs = _jobs(args)
     if len(jobs) == 1:  # in this process: errors reach main()'s handler (and --debug)
         start = time.perf_counter()
@@ -217,43 +141,34 @@ def cmd_build(args: argparse.Namespace) -> int:
     return _build_many(args, jobs)
 
 
-def _build_many(args: argparse.Namespace, jobs: list[BuildJob]) -> int:
+def _build_many(args: argparse.Namespace, jobs: list) -> int:
     """Build every job in up to ``-j`` processes; each result on its own line, exit 2 if any failed."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from export.pipeline import build_files
 
-    failed = 0
     with _Bar(args, len(jobs), "meshes") as bar:
         bar.describe(f"building in {min(args.jobs, len(jobs))} processes")
 
-        def report(result: tuple[str, str, list[str]]) -> None:
-            nonlocal failed
-            status, message, notes = result
-            for note in notes:
+        def report(result) -> None:
+            for note in result.notes:
                 bar.write(f"nupatch: warning: {note}")
-            if status != "ok":
-                failed += 1
-                bar.write(f"nupatch: {' '.join(message.split())}")
+            if result.status != "ok":
+                bar.write(f"nupatch: {' '.join(result.message.split())}")
             elif not args.quiet:
-                bar.write(f"nupatch: {message}")
+                bar.write(f"nupatch: {result.message}")
             bar.update()
 
-        if args.jobs == 1:
-            for job in jobs:
-                report(_build_worker(job))
-        else:
-            with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
-                for future in as_completed([pool.submit(_build_worker, job) for job in jobs]):
-                    report(future.result())
+        results = build_files(jobs, args.jobs, report)
+    failed = sum(r.status != "ok" for r in results)
     if failed:
         _progress(args, f"{failed} of {len(jobs)} meshes failed")
     return 2 if failed else 0
 
 
 def cmd_subdivide(args: argparse.Namespace) -> int:
-    """nupatch subdivide MESH -n K -o OUT.obj: the refined control mesh with its tags (DESIGN 4)."""
-    from patching.atomic import atomic_path
-    from patching.obj import write_obj
-    from patching.subdivision import rules_tag, subdivide
+    """nupatch subdivide MESH -n K -o OUT.obj: the refined control mesh with its tags (docs/cli.md)."""
+    from export.atomic import atomic_write_text
+    from patching.mesh import format_obj
+    from patching.subdivision.catmark import rules_tag, subdivide
 
     mesh_path = Path(args.mesh)
     out = Path(args.output)
@@ -266,15 +181,12 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     check_output_path(out)
     start = time.perf_counter()
     mesh = patching.read_mesh(mesh_path)
-    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.angles, crease_method=args.crease_method)
+    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
     comment = (
         f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
-        f"angles {args.angles}, crease method {args.crease_method}"
+        f"angles {args.eigen_angles}, crease method {args.crease_method}"
     )
-    with atomic_path(out) as tmp:
-        write_obj(refined, tmp, comment=comment)
-        with open(tmp, "a", encoding="utf-8") as fh:
-            fh.write(rules_tag(args.rules) + "\n")
+    atomic_write_text(out, format_obj(refined, comment) + rules_tag(args.rules) + "\n")
     _progress(args, f"{refined.n_faces} faces from {mesh.n_faces} in {args.steps} step(s), wrote {out} in {time.perf_counter() - start:.2f} s")
     return 0
 
@@ -297,16 +209,16 @@ def cmd_info(args: argparse.Namespace) -> int:
         "extraordinary_points": {"count": int(ep.size), "by_valence": valences},
         "strips": len(strips),
         "intervals": {"distinct": intervals[:20], "min": min(intervals), "max": max(intervals)},
-        "sharp_edges": int(np.count_nonzero(topo.edge_sharpness >= patching.mesh.INFINITELY_SHARP)),
+        "sharp_edges": int(np.count_nonzero(topo.edge_sharpness >= patching.mesh.control_mesh.INFINITELY_SHARP)),
         "semi_sharp_edges": int(np.count_nonzero((topo.edge_sharpness > 0) & (topo.edge_sharpness < 10))),
         "boundary_edges": int(np.count_nonzero(topo.edge_is_boundary)),
         "closed": bool(not topo.edge_is_boundary.any()),
         "interpolate_boundary": mesh.interpolate_boundary,
     }
     if info["semi_sharp_edges"] == 0 and mesh.is_quad_mesh:
-        # what the patch construction makes of the tags (patching.features); meshes that are
+        # what the patch construction makes of the tags (patching.topology.features); meshes that are
         # subdivided first are classified after those steps, so they are left out here
-        from patching.features import features
+        from patching.topology.features import features
 
         feats = features(topo)
         info["sharp_features"] = {
@@ -368,6 +280,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     from export.atomic import atomic_output
     from export.render import render, sample_shape
+    from export.tolerances import RENDER_RELATIVE
 
     source = Path(args.source)
     out = Path(args.output) if args.output else source.with_suffix(".png")
@@ -376,8 +289,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out.suffix.lower() != ".png":
         raise NupatchError("render writes PNG images: OUT must end in .png", str(out))
     size = _size(args.size)
-    if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
-        raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
+    if args.tolerance is not None:
+        from export.tolerances import check_tolerance
+
+        check_tolerance(args.tolerance)
     check_output_path(out)
     start = time.perf_counter()
     if source.suffix.lower() in (".step", ".stp"):
@@ -386,18 +301,18 @@ def cmd_render(args: argparse.Namespace) -> int:
         _require_step(source)
         shape = read_step(source)
         lines = None  # the faces' boundary edges
-        tolerance = args.tolerance or 2e-3 * _diagonal(shape)
+        tolerance = args.tolerance or RENDER_RELATIVE * _diagonal(shape)
     else:
         from export.brep import to_shape
 
         mesh = patching.read_mesh(source)
-        surface = patching.build(mesh, angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
+        surface = patching.build(mesh, _options(args))
         shape = to_shape(surface)
         lines = None
         if args.mesh:
             edges = patching.Topology(mesh).edges
             lines = mesh.vertices[np.asarray(edges)]
-        tolerance = args.tolerance or 2e-3 * surface.size
+        tolerance = args.tolerance or RENDER_RELATIVE * surface.size
     mode = "zebra" if args.zebra else (args.curvature or "shaded")
     sampled = sample_shape(shape, tolerance, lines)
     with atomic_output(out) as tmp:
@@ -407,7 +322,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def _diagonal(shape) -> float:
-    from export.continuity import _diagonal as diagonal
+    from export.continuity import shape_diagonal as diagonal
 
     return diagonal(shape) or 1.0
 
@@ -425,11 +340,28 @@ def _require_step(path: Path) -> None:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with DESIGN 4's one-line errors (argparse prints the usage, then the error)."""
+    """argparse with docs/cli.md's one-line errors (argparse prints the usage, then the error)."""
 
     def error(self, message: str):
         print(f"nupatch: error: {' '.join(message.split())} (command line)", file=sys.stderr)
         sys.exit(2)
+
+
+def _add_build_options(p: argparse.ArgumentParser) -> None:
+    """The BuildOptions flags, their choices and defaults from ``patching.options``."""
+    defaults = BuildOptions()
+    p.add_argument(
+        "--angles", choices=CHOICES["angles"], default=defaults.angles,
+        help=f"angle configuration at extraordinary points (default: {defaults.angles})",
+    )
+    p.add_argument(
+        "--anchors", choices=CHOICES["anchors"], default=defaults.anchors,
+        help=f"rule for the auxiliary anchors at extraordinary points (default: {defaults.anchors})",
+    )
+    p.add_argument(
+        "--g1-solve", choices=CHOICES["g1_solve"], default=defaults.g1_solve,
+        help="joint: one fairing solve per cluster of adjacent extraordinary points (default); seed: [FSLYJ]'s per-point steps",
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -442,6 +374,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     from export.formats import FORMATS
+    from patching.subdivision.catmark import ANGLE_CHOICES, CREASE_METHODS, RULE_SETS
 
     p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
     p.add_argument("mesh", metavar="MESH", nargs="+", help="control mesh(es), OBJ with OpenSubdiv tags")
@@ -455,12 +388,7 @@ def _parser() -> argparse.ArgumentParser:
         "--tolerance", type=float, metavar="T",
         help="linear deflection of the stl/glb/obj tessellation, model units (default: 1e-3 of the control mesh's diagonal)",
     )
-    p.add_argument("--angles", choices=ANGLES, default="optimized", help="angle configuration at extraordinary points (default: optimized)")
-    p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="rule for the auxiliary anchors at extraordinary points (default: eigen-polyhedron)")
-    p.add_argument(
-        "--g1-solve", choices=G1_SOLVES, default="joint",
-        help="joint: one fairing solve per cluster of adjacent extraordinary points (default); seed: seed 002's per-point steps",
-    )
+    _add_build_options(p)
     p.add_argument(
         "--pack", action="store_true",
         help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
@@ -477,10 +405,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
     p.add_argument("-n", dest="steps", type=int, default=1, metavar="K", help="number of steps (default 1)")
     p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
-    p.add_argument("--rules", choices=("seed", "opensubdiv"), default="seed", help="seed: non-uniform rules of seed 000 (default); opensubdiv: OpenSubdiv's, uniform intervals only")
-    p.add_argument("--angles", choices=("standard", "modified"), default="standard", help="eigen-polyhedron angles at non-uniform EPs (modified: seed 001)")
+    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only")
     p.add_argument(
-        "--crease-method", choices=("uniform", "chaikin"), default="uniform",
+        "--eigen-angles", "--angles", dest="eigen_angles", choices=ANGLE_CHOICES, default="standard",
+        help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",
+    )
+    p.add_argument(
+        "--crease-method", choices=CREASE_METHODS, default="uniform",
         help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
@@ -517,9 +448,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=float, metavar="T", help="tessellation deflection (default: 2e-3 of the size)")
     p.add_argument("--renderer", choices=("auto", "vtk", "matplotlib"), default="auto",
                    help="VTK off-screen, or matplotlib Agg (auto: VTK, matplotlib if VTK has no context)")
-    p.add_argument("--angles", choices=ANGLES, default="optimized", help="as for build")
-    p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="as for build")
-    p.add_argument("--g1-solve", choices=G1_SOLVES, default="joint", help="as for build")
+    _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_render)
     return parser

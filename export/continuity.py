@@ -1,4 +1,4 @@
-"""Continuity of a B-rep across its shared edges, measured with OpenCASCADE alone (DESIGN 5).
+"""Continuity of a B-rep across its shared edges, measured with OpenCASCADE alone (docs/verification.md).
 
 For every edge that two faces share (``TopExp.MapShapesAndAncestors``), points are sampled
 at ``samples_per_edge`` equally spaced parameters w of the edge, including its ends.  At each
@@ -13,7 +13,7 @@ otherwise the edge's 3D point is projected onto the face), and we record
 Every shared edge is then classified (the per-edge G0/G1 table, ``ContinuityReport.edges``):
 
 - *sharp*: its normal jump is at least ``sharp_angle_deg`` (default 10 deg) at every sample,
-  ends included.  A crease (an infinitely sharp edge, C0 by design, DESIGN 3) keeps its angle
+  ends included.  A crease (an infinitely sharp edge, C0 by design, docs/surface.md) keeps its angle
   along its whole length; a continuity defect vanishes wherever the two nets still agree (at
   the ends of an edge whose interior row moved: a nudge of 20% of a torus' tube radius gives
   19 deg at the middle of an edge, 0 at its ends), so it is never taken for a crease however
@@ -40,6 +40,7 @@ import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from export.tolerances import G1_TOLERANCE_DEG, GAP_TOLERANCE, SHARP_ANGLE_DEG
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
@@ -56,16 +57,6 @@ __all__ = ["EdgeDefect", "ContinuityReport", "check_continuity"]
 
 #: Entries of ``ContinuityReport.worst_edges`` per criterion (normal jump, then gap).
 N_WORST = 5
-#: Normal jump (degrees) that a sharp edge (a crease) keeps all along (module docstring).
-SHARP_ANGLE_DEG = 10.0
-#: Largest normal jump (degrees) of a G1 edge: 100x the worst G1 residual reported for
-#: nupatch's bi-quintic EP patches (~1e-7 deg at interval ratio 20; 1e-11 deg measured on an
-#: L-shaped polycube with intervals 0.5 to 3), 1e6x round-off of C1 neighbours (~1e-11 deg).
-G1_TOLERANCE_DEG = 1e-5
-#: Largest gap of a G0 edge, relative to the diagonal: the B-rep's own tolerance
-#: (``export.brep.RELATIVE_TOLERANCE``; it is relative to the control points' diagonal,
-#: which is at least the surface's).
-GAP_TOLERANCE = 1e-7
 
 
 @dataclass(frozen=True)
@@ -186,7 +177,7 @@ def _count(shape: TopoDS_Shape, kind) -> int:
     return shapes.Extent()
 
 
-def _diagonal(shape: TopoDS_Shape) -> float:
+def shape_diagonal(shape: TopoDS_Shape) -> float:
     box = Bnd_Box()
     BRepBndLib.Add_s(shape, box, False)  # poles' box for Bézier/B-spline faces: cheap, and >= the surface's
     if box.IsVoid():
@@ -274,7 +265,7 @@ def check_continuity(
     face_ids=None,
 ) -> ContinuityReport:
     """Measure validity, free edges, gaps and normal jumps of a shape, a STEP file or a
-    ``BezierSurface`` (DESIGN 5), and classify every shared edge (module docstring).
+    ``BezierSurface`` (docs/verification.md), and classify every shared edge (module docstring).
 
     For a ``BezierSurface`` the B-rep is built (unchecked, so that a broken surface is
     measured rather than refused) and faces are reported by their mesh face ids; ``face_ids``
@@ -303,7 +294,7 @@ def check_continuity(
     TopExp.MapShapes_s(shape, TopAbs_FACE, faces)
     edge_faces = TopTools_IndexedDataMapOfShapeListOfShape()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, edge_faces)
-    diagonal = _diagonal(shape)
+    diagonal = shape_diagonal(shape)
     tol = 1e-9 * diagonal if diagonal > 0 else 1e-9
 
     surfaces = _Surfaces(faces, tol)

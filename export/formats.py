@@ -1,4 +1,4 @@
-"""Output formats: one writer function per format in one registry, one atomic wrapper (STYLE 5).
+"""Output formats: one writer function per format in one registry, one atomic wrapper.
 
 ``WRITERS`` maps a format name to ``writer(job, tmp_path)``; ``write`` picks the format (from
 the argument, else the file's suffix), builds what the writer needs once and calls it inside
@@ -31,31 +31,14 @@ from typing import Callable
 
 import numpy as np
 
-from patching.bernstein import bernstein
-from patching.errors import NupatchError, OutputError
+from patching.bernstein import evaluate_pairs
+from patching.errors import OutputError
 from patching.surface import BezierSurface
 
-from .atomic import atomic_output
+from export.atomic import atomic_output
+from export.tolerances import ANGULAR_DEFLECTION, MIN_TESSELLATION, TESSELLATION_RELATIVE, check_tolerance
 
 __all__ = ["FORMATS", "SUFFIXES", "WRITERS", "Tessellation", "check_tolerance", "format_of", "tessellate", "write"]
-
-#: Angular deflection of the tessellation (radians): OpenCASCADE's usual 0.5.
-ANGULAR_DEFLECTION = 0.5
-#: Default linear deflection, times ``BezierSurface.size``.
-RELATIVE_TOLERANCE = 1e-3
-#: Smallest linear deflection: OpenCASCADE's Precision::Confusion, below which
-#: BRepMesh_IncrementalMesh throws (Standard_NumericError); the default is raised to it.
-MIN_TOLERANCE = 1e-7
-
-
-def check_tolerance(tolerance: float) -> None:
-    """NupatchError (naming --tolerance) unless the linear deflection is finite and >= MIN_TOLERANCE."""
-    if not (np.isfinite(tolerance) and tolerance >= MIN_TOLERANCE):
-        raise NupatchError(
-            f"tessellation tolerance must be finite and at least {MIN_TOLERANCE:g} (OpenCASCADE's precision), not {tolerance:g}",
-            "--tolerance",
-        )
-
 
 @dataclass(frozen=True)
 class Tessellation:
@@ -80,19 +63,11 @@ def _evaluate(surface: BezierSurface, patch: np.ndarray, uv: np.ndarray, chunk: 
     normals = np.empty((len(patch), 3))
     offset = 0
     for g in surface.groups:
-        d = g.degree
         rows = np.flatnonzero((patch >= offset) & (patch < offset + len(g.faces)))
         for lo in range(0, len(rows), chunk):
             r = rows[lo : lo + chunk]
             nets = g.coefficients[patch[r] - offset]  # (c, d+1, d+1, 3)
-            s, t = uv[r, 0], uv[r, 1]
-            bs, bt = bernstein(d, s), bernstein(d, t)
-            bs1, bt1 = bernstein(d - 1, s), bernstein(d - 1, t)
-            along_t = np.einsum("mj,mijc->mic", bt, nets)  # rows of the net evaluated in t
-            points[r] = np.einsum("mi,mic->mc", bs, along_t)
-            ds = d * np.einsum("mi,mic->mc", bs1, along_t[:, 1:] - along_t[:, :-1])
-            along_s = np.einsum("mi,mijc->mjc", bs, nets)
-            dt = d * np.einsum("mj,mjc->mc", bt1, along_s[:, 1:] - along_s[:, :-1])
+            points[r], ds, dt = evaluate_pairs(nets, uv[r, 0], uv[r, 1], derivatives=True)
             n = np.cross(ds, dt)
             normals[r] = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         offset += len(g.faces)
@@ -111,12 +86,12 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     from OCP.TopoDS import TopoDS
     from OCP.TopTools import TopTools_IndexedMapOfShape
 
-    from .brep import shape_face_rows, to_shape
+    from export.brep import shape_face_rows, to_shape
 
     if shape is None:
         shape = to_shape(surface)
     if tolerance is None:
-        tolerance = max(RELATIVE_TOLERANCE * surface.size, MIN_TOLERANCE)
+        tolerance = max(TESSELLATION_RELATIVE * surface.size, MIN_TESSELLATION)
     check_tolerance(tolerance)
     mesher = BRepMesh_IncrementalMesh(shape, float(tolerance), False, ANGULAR_DEFLECTION, False)
     if not mesher.IsDone():
@@ -179,7 +154,7 @@ class ExportJob:
 
 
 def _write_step(job: ExportJob, tmp: Path) -> None:
-    from .step import write_step_file
+    from export.step import write_step_file
 
     write_step_file(job.shape, tmp, job.name, job.file_name)
 
@@ -187,11 +162,11 @@ def _write_step(job: ExportJob, tmp: Path) -> None:
 def _write_iges(job: ExportJob, tmp: Path) -> None:
     from OCP.IGESControl import IGESControl_Controller, IGESControl_Writer
 
-    from .step import _quiet_occ
+    from export.step import quiet_occ
 
     IGESControl_Controller.Init_s()
     writer = IGESControl_Writer("MM", 1)  # mode 1: B-rep (MSBO solids, faces), not trimmed surfaces
-    with _quiet_occ():
+    with quiet_occ():
         if not writer.AddShape(job.shape):
             raise RuntimeError(f"IGESControl_Writer.AddShape failed for {job.file_name}")
         writer.ComputeModel()
@@ -324,7 +299,7 @@ def write(surface: BezierSurface, path: str | os.PathLike, fmt: str | None = Non
     if tolerance is not None:
         check_tolerance(tolerance)
     if shape is None:
-        from .brep import to_shape
+        from export.brep import to_shape
 
         shape = to_shape(surface)
     job = ExportJob(surface, shape, path.name, tolerance)

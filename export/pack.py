@@ -1,9 +1,9 @@
-"""Packed faces: rectangular blocks of bicubic patches as one multi-span B-spline face (issue 5).
+"""Packed faces: rectangular blocks of bicubic patches as one multi-span B-spline face.
 
-A regular region of the surface is, by construction (DESIGN 2, 3), one non-uniform bicubic
+A regular region of the surface is, by construction (docs/knots.md, 3), one non-uniform bicubic
 B-spline; ``to_shape`` nevertheless makes one Bézier face per patch.  Here blocks of bicubic
 patches that lie in a rectangular grid become one ``Geom_BSplineSurface`` face each, re-using
-the patches' coefficients only (no geometry rule is recomputed, STYLE 1):
+the patches' coefficients only (no geometry rule is recomputed):
 
 1. Blocks.  From a seed patch the block grows along its s direction across side 1 while the
    next patch is bicubic and free, then row by row across side 2 while every patch above is
@@ -13,13 +13,13 @@ the patches' coefficients only (no geometry rule is recomputed, STYLE 1):
    is left out, so no packed face needs a seam.
 2. Surface.  The block's nets become the poles of a bicubic B-spline with every interior knot
    of multiplicity 3 (the Bézier form: exactly the patches), knots at the cumulative knot
-   intervals of the block's columns and rows (``patching.operator.face_spans``, the intervals
+   intervals of the block's columns and rows (``Topology.face_spans``, the intervals
    the patches were extracted with), so that the joins are C2 in this parametrisation; then
    OpenCASCADE removes each interior knot down to multiplicity 1 (``RemoveUKnot``/
    ``RemoveVKnot``), which succeeds where the join is C2 to within ``KNOT_TOLERANCE``, else
    down to 2 (a C1 join, beside a zero interval).
 3. Check.  The packed surface is evaluated at a 5 x 5 grid of every patch of the block and
-   compared with the patch (de Casteljau via ``patching.evaluation.evaluate_nets``); a block
+   compared with the patch (de Casteljau via ``patching.evaluation.sampling.evaluate_nets``); a block
    that differs by more than ``EXACTNESS`` (relative to the surface size) is not packed
    (its patches stay Bézier faces), so the surface is never changed.
 4. B-rep.  As ``export.brep.to_shape``, with shared vertices and edges: every patch side on a
@@ -42,16 +42,16 @@ from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
 from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 
-from patching.evaluation import evaluate_nets
+from patching.bernstein import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from .brep import (
+from export.brep import (
     BrepError,
-    _bezier_curve,
-    _bezier_surface,
-    _line,
-    _pcurve,
-    _side_row,
+    bezier_curve,
+    bezier_surface,
+    line_2d,
+    pcurve,
+    side_row,
     assemble,
     bound_face,
     checked_patches,
@@ -294,9 +294,9 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
             if eid in edges or eid not in used_edges:
                 continue
             rev = bool(side_reversed[row, k])
-            curve_row = _side_row(net, k)[::-1] if rev else _side_row(net, k)
+            curve_row = side_row(net, k)[::-1] if rev else side_row(net, k)
             e = TopoDS_Edge()
-            builder.MakeEdge(e, _bezier_curve(curve_row), tol)
+            builder.MakeEdge(e, bezier_curve(curve_row), tol)
             a, b = ((k + 1) % 4, k) if rev else (k, (k + 1) % 4)
             builder.Add(e, vertex(int(corner_vertex[row, a]), corners[a]).Oriented(TopAbs_FORWARD))
             builder.Add(e, vertex(int(corner_vertex[row, b]), corners[b]).Oriented(TopAbs_REVERSED))
@@ -307,8 +307,8 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
         f = TopoDS_Face()
         if plan[0] == "patch":
             row = plan[1]
-            builder.MakeFace(f, _bezier_surface(nets[row]), tol)
-            sides = [(row, k, _pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
+            builder.MakeFace(f, bezier_surface(nets[row]), tol)
+            sides = [(row, k, pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
         else:
             _, block, bspline, u, v = plan
             builder.MakeFace(f, bspline, tol)
@@ -319,7 +319,7 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
                 original = (k + t) % 4
                 if side_reversed[r, original]:
                     a, b = b, a
-                sides.append((r, original, _line(a, b)))
+                sides.append((r, original, line_2d(a, b)))
         bound_face(builder, f, sides, edges, side_edge, side_reversed, tol)
         faces.append(f)
 
@@ -377,18 +377,18 @@ def _boundary(block: Block, with_cell: bool = False):
 
 def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
     """(p, 2) knot intervals of every patch along its s and t, from the mesh it was built from
-    (``patching.operator.face_spans``: the intervals of the face's edges h0 and h1).  Wrong
+    (``Topology.face_spans``: the intervals of the face's edges h0 and h1).  Wrong
     spans could not change the surface (a span of the triple-knot B-spline is its patch
     whatever its length), only keep knots from being removed."""
-    from patching.operator import face_spans, patched_mesh
-    from patching.topology import Topology
+    from patching.operator import patched_mesh
+    from patching.topology.tables import Topology
 
     surface.topology.require_whole_sides("--pack")
     # build_operator patches the mesh after its global steps for semi-sharp tags and n-gons
-    # (issue 4): its faces are those.  A surface without split sides is that mesh's, whichever
+    #: its faces are those.  A surface without split sides is that mesh's, whichever
     # refinement built it (an adaptive one whose leaves are all on the finest level has its
     # faces' ids), so the global steps give its spans.
-    spans = face_spans(Topology(patched_mesh(mesh, refinement="global")))
+    spans = Topology(patched_mesh(mesh, refinement="global")).face_spans
     faces = np.array([face for _, _, face, _ in surface.patches()], dtype=np.int64)
     if faces.size and faces.max() >= len(spans):
         raise ValueError("the surface's faces are not the mesh's: was it built from this mesh?")

@@ -1,4 +1,4 @@
-"""Pictures of a surface, headless: shaded, zebra stripes, curvature with a legend (issue 5).
+"""Pictures of a surface, headless: shaded, zebra stripes, curvature with a legend.
 
 Renderer: VTK (9.x, installed with cadquery-ocp), off-screen.  On a machine without a display
 VTK's render-window factory falls back from X to EGL; we silence its warning about X.  VTK is

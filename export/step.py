@@ -1,4 +1,4 @@
-"""STEP files through OpenCASCADE's STEPControl: atomic, deterministic writes (DESIGN 3).
+"""STEP files through OpenCASCADE's STEPControl: atomic, deterministic writes (docs/surface.md).
 
 ``write_step`` writes AP214 (``AUTOMOTIVE_DESIGN``) in millimetres with the product named
 ``product_name``.  The file appears only complete: OCC writes a temporary file in the target
@@ -30,9 +30,9 @@ from OCP.TopoDS import TopoDS_Shape
 
 from patching.errors import InputFileError
 
-from .atomic import atomic_output
+from export.atomic import atomic_output
 
-__all__ = ["StepError", "write_step", "write_step_file", "read_step"]
+__all__ = ["StepError", "write_step", "write_step_file", "read_step", "quiet_occ"]
 
 #: STEP schema written; AP214 is read by every CAD system we know of.
 SCHEMA = "AP214IS"
@@ -43,7 +43,7 @@ class StepError(RuntimeError):
 
 
 @contextlib.contextmanager
-def _quiet_occ():
+def quiet_occ():
     """Raise the default messenger's printers to failures only (OCC prints transfer statistics)."""
     printers = list(Message.DefaultMessenger_s().Printers())
     levels = [p.GetTraceLevel() for p in printers]
@@ -113,7 +113,7 @@ def write_step_file(shape: TopoDS_Shape, tmp: Path, product_name: str, file_name
         "write.step.unit": "MM",
         "write.step.product.name": product_name,
     }
-    with _quiet_occ(), _static_values(statics):
+    with quiet_occ(), _static_values(statics):
         status = writer.Transfer(shape, STEPControl_AsIs)
         if status != IFSelect_RetDone:
             raise StepError(f"STEPControl_Writer.Transfer returned {status} for {file_name}")
@@ -129,7 +129,7 @@ def read_step(path: str | os.PathLike) -> TopoDS_Shape:
     if not path.is_file():
         raise InputFileError("no such STEP file", str(path))
     reader = STEPControl_Reader()
-    with _quiet_occ():
+    with quiet_occ():
         status = reader.ReadFile(str(path))
         if status != IFSelect_RetDone:
             raise InputFileError(f"not a readable STEP file ({status})", str(path))

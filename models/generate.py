@@ -5,8 +5,8 @@
 
 from pathlib import Path
 
-from patching.obj import write_obj
-from patching.primitives import open_grid, torus_grid
+from export import write_obj
+from patching.mesh.primitives import open_grid, torus_grid
 
 HERE = Path(__file__).parent
 
@@ -30,9 +30,9 @@ def polycube_with_tight_edges(voxels, divisions, name, edge_interval):
     crowd towards the box edges, which rounds them more tightly (a NURBS designer's trick)."""
     import numpy as np
 
-    from patching.mesh import from_arrays
-    from patching.primitives import polycube
-    from patching.topology import Topology
+    from patching.mesh.control_mesh import from_arrays
+    from patching.mesh.primitives import polycube
+    from patching.topology.tables import Topology
 
     mesh = polycube(voxels, divisions, name=name)
     topo = Topology(mesh)
@@ -69,8 +69,8 @@ def sharp_top_and_sides(mesh, name: str):
     into the soft base (darts at the bottom corners)."""
     import numpy as np
 
-    from patching.mesh import from_arrays
-    from patching.topology import Topology
+    from patching.mesh.control_mesh import from_arrays
+    from patching.topology.tables import Topology
 
     topo = Topology(mesh)
     quads = mesh.quads()

@@ -1,4 +1,4 @@
-"""One exception family for everything a user can get wrong (STYLE 6).
+"""One exception family for everything a user can get wrong.
 
 Every message names the problem and, in ``where``, the place: file and line, or vertex,
 edge and face ids.  The CLI prints ``nupatch: error: <what> (<where>)`` and exits 2; any
@@ -15,6 +15,7 @@ __all__ = [
     "UnsupportedError",
     "InputFileError",
     "OutputError",
+    "OptionError",
 ]
 
 
@@ -49,3 +50,7 @@ class UnsupportedError(NupatchError):
 
 class OutputError(NupatchError):
     """The output cannot be written where asked."""
+
+
+class OptionError(NupatchError):
+    """An option given a value outside its choices (``options.BuildOptions``)."""

@@ -1,6 +1,6 @@
 """The patched surface: Bézier coefficient nets per face plus the topology that the B-rep shares.
 
-Point ordering, written once (STYLE 9).  A patch of bi-degree d has coefficients
+Point ordering, written once.  A patch of bi-degree d has coefficients
 ``coefficients[k, i, j]`` multiplying ``B_i^d(s) B_j^d(t)``.  Its parameter square is laid on
 the mesh face ``v0 v1 v2 v3`` (the face's vertex order, counter-clockwise seen from outside):
 
@@ -25,8 +25,11 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import scipy.sparse as sp
 
-__all__ = ["CORNER_PARAMETERS", "PatchGroup", "PatchTopology", "SidePieces", "BezierSurface"]
+from patching.util.parallel import product
+
+__all__ = ["CORNER_PARAMETERS", "PatchGroup", "PatchTopology", "SidePieces", "BezierSurface", "OperatorGroup", "SurfaceOperator"]
 
 #: (s, t) of the patch corners 0..3, in the face's vertex order.
 CORNER_PARAMETERS = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -151,7 +154,7 @@ class PatchTopology:
     def require_whole_sides(self, what: str) -> None:
         """Raise UnsupportedError naming ``what`` when some side is split (T-junctions)."""
         if self.has_split_sides:
-            from .errors import UnsupportedError
+            from patching.errors import UnsupportedError
 
             rows = np.flatnonzero(np.diff(self.side_indptr) != 1) // 4
             raise UnsupportedError(
@@ -194,3 +197,47 @@ class BezierSurface:
             for face, net in zip(g.faces, g.coefficients):
                 yield row, g.degree, int(face), net
                 row += 1
+
+
+@dataclass(frozen=True)
+class OperatorGroup:
+    """Rows of one degree: ``faces`` (k,) mesh faces, rows from ``row_offset``."""
+
+    degree: int
+    faces: np.ndarray
+    row_offset: int
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.faces) * (self.degree + 1) ** 2
+
+
+@dataclass(frozen=True)
+class SurfaceOperator:
+    """M and what is needed to turn M @ P into a BezierSurface."""
+
+    matrix: sp.csr_matrix
+    groups: tuple[OperatorGroup, ...]
+    topology: PatchTopology
+    name: str
+
+    def coefficients(self, points: np.ndarray) -> np.ndarray:
+        """(rows, 3) Bézier coefficients for control points (n, 3): one sparse product."""
+        return product(self.matrix, np.asarray(points, dtype=np.float64))
+
+    def evaluate(self, points: np.ndarray) -> BezierSurface:
+        """The patches for control points (n, 3)."""
+        points = np.asarray(points, dtype=np.float64)
+        coeffs = self.coefficients(points)
+        groups = []
+        for g in self.groups:
+            d = g.degree
+            block = coeffs[g.row_offset : g.row_offset + g.n_rows].reshape(-1, d + 1, d + 1, 3)
+            groups.append(PatchGroup(d, g.faces, block))
+        size = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+        return BezierSurface(tuple(groups), self.topology, self.name, size)
+
+    @cached_property
+    def row_sums(self) -> np.ndarray:
+        return np.asarray(self.matrix.sum(axis=1)).ravel()
+

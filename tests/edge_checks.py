@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 import patching
-from patching.evaluation import evaluate_nets
-from patching.features import features
-from patching.topology import Topology
+from patching.evaluation.sampling import evaluate_nets
+from patching.topology.features import features
+from patching.topology.tables import Topology
 
 SIDE_PARAMETERS = {
     0: lambda u: (u, 0 * u),
@@ -85,7 +85,7 @@ def _patches(surface):
 def crease_chains(topo: Topology, sharp: np.ndarray, corner: np.ndarray) -> list[tuple[list[int], bool]]:
     """Chains of sharp edges as vertex lists, and whether each closes on itself.  A chain runs
     on through crease vertices (exactly two sharp edges, no corner) and ends at corners or at
-    darts (a small local walk, written independently of patching.features)."""
+    darts (a small local walk, written independently of patching.topology.features)."""
     ends = topo.edges[sharp]
     count = np.bincount(ends.ravel(), minlength=topo.n_vertices)
     incident: dict[int, list[int]] = {}
@@ -119,7 +119,7 @@ def crease_chains(topo: Topology, sharp: np.ndarray, corner: np.ndarray) -> list
 def crease_bezier_curves(mesh: patching.ControlMesh) -> dict[tuple[int, int], np.ndarray]:
     """{(a, b): (4, 3) Bezier points} of the crease curve over every sharp edge a-b (also keyed
     (b, a), reversed): the cubic B-spline of the crease polygon with its edges' intervals
-    (DESIGN 2), closed chains periodic, open chains extended at both ends by the point
+    (docs/knots.md), closed chains periodic, open chains extended at both ends by the point
     reflection of the polygon and its intervals through the end vertex (the phantom
     2 P_0 - P_k), so the curve ends at the corner.  Uses tests/reference_bspline, not the
     product's extraction."""
@@ -186,7 +186,7 @@ def crease_deviation(mesh: patching.ControlMesh, surface, samples: int = 9) -> f
 
 def brep_smooth_jump(mesh: patching.ControlMesh, surface) -> float:
     """Largest normal jump (degrees) that OpenCASCADE measures on the exported B-rep
-    (export.check_continuity, DESIGN 5) over the edges between faces that share no sharp mesh
+    (export.check_continuity, docs/verification.md) over the edges between faces that share no sharp mesh
     edge: the G1 acceptance on the B-rep, with sharp edges told apart by the mesh's tags
     rather than by the size of the jump."""
     from export import check_continuity

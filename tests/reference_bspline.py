@@ -1,6 +1,6 @@
-"""Bézier extraction of one span of a non-uniform cubic B-spline, as weights (seed 002, 3.2).
+"""Bézier extraction of one span of a non-uniform cubic B-spline, as weights ([FSLYJ], 3.2).
 
-Knot-interval convention (DESIGN 2): along a row of control points the leg P_i P_{i+1}
+Knot-interval convention (docs/knots.md): along a row of control points the leg P_i P_{i+1}
 carries the interval t_{i+3} - t_{i+2}.  The span between the middle two of four control points
 P_0..P_3 therefore is [t_3, t_4] and depends on five leg intervals
 
@@ -9,7 +9,7 @@ P_0..P_3 therefore is [t_3, t_4] and depends on five leg intervals
 the legs P_{-1}P_0, P_0P_1, P_1P_2 (the span itself), P_2P_3 and P_3P_4.  With blossoms,
 P_j = f(t_{j+1}, t_{j+2}, t_{j+3}) and the Bézier points are b_k = f(t_3^{3-k}, t_4^k); the
 de Boor recursion evaluates the blossom (The NURBS Book, A5.1 generalised to blossoms).  This
-is the same double-knot insertion that seed 002 writes as face points (Fig. 6, alpha = d_0 /
+is the same double-knot insertion that [FSLYJ] writes as face points (Fig. 6, alpha = d_0 /
 (d_0 + d_1 + d_2)) and edge/vertex points (eq. 1).  Every denominator contains the span e_2,
 so the weights exist whenever e_2 > 0; multiple knots (zero intervals) are allowed elsewhere.
 """

@@ -1,6 +1,6 @@
 """Reference (second, independent) regular-face extraction for the tests: 4x4 stencils walked on
-the half-edges and per-span blossoms, the way a B-spline textbook does it (STYLE 9: "a second,
-slower implementation in the tests"). The product uses patching.bezier_extraction.
+the half-edges and per-span blossoms, the way a B-spline textbook does it ("a second,
+slower implementation in the tests"). The product uses patching.extraordinary.extraction.
 
 
 Stencil layout of face f = (v0, v1, v2, v3), half-edges h0..h3 (h_k from v_k to v_{k+1});
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tests.reference_bspline import cubic_span_extraction
-from patching.topology import Topology
+from patching.topology.tables import Topology
 
 __all__ = ["RegularStencils", "regular_stencils", "regular_extraction_weights", "face_spans"]
 
@@ -73,7 +73,7 @@ class _Walker:
 def face_spans(topo: Topology) -> np.ndarray:
     """(f, 2) float64: the face's knot interval in u (edges h0, h2) and in v (h1, h3).
 
-    Zero in either direction: zero parametric area, no patch (issue 3)."""
+    Zero in either direction: zero parametric area, no patch."""
     base = topo.mesh.face_offsets[:-1]
     return np.stack(
         [topo.halfedge_interval[base], topo.halfedge_interval[base + 1]], axis=1
@@ -143,7 +143,7 @@ def regular_stencils(topo: Topology, faces: np.ndarray) -> tuple[RegularStencils
 def regular_extraction_weights(stencils: RegularStencils) -> np.ndarray:
     """(k, 4, 4, 4, 4) weights W[., i, j, a, b]: net[i, j] = sum_ab W P[stencil[a, b]].
 
-    The tensor product of the u and v span extractions (DESIGN 2 knot convention)."""
+    The tensor product of the u and v span extractions (docs/knots.md knot convention)."""
     wu = cubic_span_extraction(stencils.u_intervals)  # (k, i, a)
     wv = cubic_span_extraction(stencils.v_intervals)  # (k, j, b)
     return np.einsum("kia,kjb->kijab", wu, wv)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import strategies as st
 
-from patching.mesh import ControlMesh, from_arrays
-from patching.primitives import torus_grid
+from patching.mesh.control_mesh import ControlMesh, from_arrays
+from patching.mesh.primitives import torus_grid
 
 
 @st.composite

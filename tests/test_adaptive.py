@@ -1,4 +1,4 @@
-"""Feature-adaptive refinement (patching.adaptive, issue 4): the adaptive
+"""Feature-adaptive refinement (patching.operator.adaptive,): the adaptive
 patches are the global construction's surface, and T-junctions are G1 (positions and normals)."""
 
 import dataclasses
@@ -9,9 +9,9 @@ import pytest
 import scipy.sparse as sp
 
 import patching
-from patching.adaptive import adaptive_operator, child_parameters, global_steps
-from patching.evaluation import evaluate_nets
-from patching.subdivision import subdivision_operator
+from patching.operator.adaptive import adaptive_operator, child_parameters, global_steps
+from patching.evaluation.sampling import evaluate_nets
+from patching.subdivision.catmark import subdivision_operator
 from patching.surface import CORNER_PARAMETERS
 from tests.conftest import SHAPES
 
@@ -56,7 +56,7 @@ def cube_level2(s, rng=None):
     edges along a loop through the middle of four sides."""
     v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     f = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-    mesh = patching.subdivision.subdivide(patching.from_arrays(v, f), 2)
+    mesh = patching.subdivision.catmark.subdivide(patching.from_arrays(v, f), 2)
     topo = patching.Topology(mesh)
     pts = mesh.vertices
     # Edges on the plane z = 0.5 (both ends there): a loop around the cube.

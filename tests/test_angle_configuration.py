@@ -1,4 +1,4 @@
-"""Tests for patching/angle_configuration.py (seed 002, section 3.3; sharp spokes: 4.2).
+"""Tests for patching/angle_configuration.py ([FSLYJ] sec. 3.3; sharp spokes: 4.2).
 
 The references here are written again, slowly and literally from the paper: the heuristic of
 section 3.3 in a loop, the reconstructed l-hat with its nested sums, the lengths of eqs. (6)
@@ -17,12 +17,13 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import approx_fprime, minimize
 
-from patching import angle_configuration as ac_module
-from patching.angle_configuration import MODES, angle_configuration
+from patching.extraordinary import angle_configuration as ac_module
+from patching.extraordinary.angle_configuration import angle_configuration
+from patching.options import ANGLES as MODES
 from patching.errors import KnotError, NupatchError, TagError
 
 TWO_PI = 2.0 * math.pi
-FIG15 = (1.0, 4.0, 1.0, 4.0, 8.0)  # seed 002, Fig. 15: valence 5, intervals 1, 4, 1, 4, 8
+FIG15 = (1.0, 4.0, 1.0, 4.0, 8.0)  # [FSLYJ], Fig. 15: valence 5, intervals 1, 4, 1, 4, 8
 
 SMALL = settings(max_examples=25, deadline=None)  # 2 shared cores: keep runs small
 
@@ -151,7 +152,7 @@ def fan_identity_residuals(c, sharp=()):
 
 
 # --------------------------------------------------------------------------------------------
-# Uniform intervals and the baseline of [32]
+# Uniform intervals and the baseline of [SSEL13]
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -168,7 +169,7 @@ def test_uniform_intervals_give_uniform_angles_and_equal_lengths(n, mode):
 @given(intervals_strategy())
 @SMALL
 def test_uniform_mode_is_scott_baseline(d):
-    """b_i = -2 d_{i-1} d_{i+1} cos(2 pi / n), reference [32], from the general b_i formula."""
+    """b_i = -2 d_{i-1} d_{i+1} cos(2 pi / n), reference [SSEL13], from the general b_i formula."""
     n = len(d)
     c = angle_configuration(d, "uniform")
     assert np.array_equal(c.theta, np.full(n, TWO_PI / n))
@@ -290,7 +291,7 @@ def test_lengths_are_eq6_eq7_fitted_to_lhat(mode, d):
     c = angle_configuration(d, mode)
     mean = np.mean(d)
     _, lengths = paper_objective(d, c.theta)
-    if mode == "uniform":  # [32]: l_i proportional to d_i, one factor fitted to l-hat
+    if mode == "uniform":  # [SSEL13]: l_i proportional to d_i, one factor fitted to l-hat
         dbar = np.array(d) / mean
         l_hat = paper_lhat(dbar, paper_heuristic(dbar))
         lengths = dbar * np.dot(dbar, l_hat) / np.dot(dbar, dbar)
@@ -442,7 +443,7 @@ def test_scaling_intervals_keeps_angles():
 @pytest.mark.parametrize("n", range(3, 11))
 @pytest.mark.parametrize("mode", ["default", "optimized"])
 def test_one_tiny_interval_opens_its_two_angles_towards_right_angles(n, mode):
-    """Seed 002: if d_i is tiny, theta_{i-1} and theta_i should tend to pi/2."""
+    """[FSLYJ]: if d_i is tiny, theta_{i-1} and theta_i should tend to pi/2."""
     d = np.ones(n)
     i = 2
     d[i] = 1e-9

@@ -6,9 +6,9 @@ import pytest
 import scipy.sparse as sp
 from hypothesis import given, settings
 
-from patching.bezier_extraction import FACE_POINT_POSITION, cubic_extraction
-from patching.primitives import open_grid, torus_grid
-from patching.topology import Topology
+from patching.extraordinary.extraction import FACE_POINT_POSITION, cubic_extraction
+from patching.mesh.primitives import open_grid, torus_grid
+from patching.topology.tables import Topology
 from tests.reference_extraction import regular_extraction_weights, regular_stencils
 from tests.strategies import torus_meshes
 

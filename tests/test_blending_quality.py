@@ -1,4 +1,4 @@
-"""Blending functions around one EP keep a single local maximum (issue 6 acceptance, the
+"""Blending functions around one EP keep a single local maximum (the
 benchmark's setting in small): configurations of ``benchmarks/blending.py`` (seed 2024,
 valence 5) that had a second maximum under earlier rules: ratio 5 before the spoke-curve
 target of red stage 2, ratio 20 with the seed's cubic-isocurve rule for the inner
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import patching
-from patching.evaluation import ep_quality
-from patching.topology import Topology
+from patching.evaluation.sampling import ep_quality
+from patching.topology.tables import Topology
 from tests.test_evaluation import ep_disc, lifted
 
 #: Configurations (index in the benchmark's draw) where a second maximum showed: at ratio 5,
@@ -53,7 +53,7 @@ def test_at_ratio_20_the_seeds_interior_rule_ripples_where_the_default_does_not(
 def test_interior_rules_agree_where_nothing_moved():
     """Both rules give the degree-elevated bicubic where the G1 steps change nothing (a forced
     valence-4 vertex, uniform intervals): the seed's f_1, f_2 reproduce elevated cubics."""
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
 
     mesh = torus_grid(8, 7, [1] * 8, [1] * 7)
     a = patching.build_operator(mesh, force_extraordinary=[17]).matrix

@@ -1,10 +1,10 @@
-"""Open boundaries as creases (issue 4; DESIGN 1: interpolateboundary 1 by default)."""
+"""Open boundaries as creases (docs/input.md: interpolateboundary 1 by default)."""
 
 import numpy as np
 import pytest
 
 import patching
-from patching.primitives import open_grid
+from patching.mesh.primitives import open_grid
 from patching.subdivision import limit_points, subdivide
 from tests.test_creases import distance_to_surface
 from tests.test_g1_patches import shared_edge_normal_jumps

@@ -1,4 +1,4 @@
-"""export.cad: build123d and cadquery objects that survive booleans and fillets (issue 5)."""
+"""export.cad: build123d and cadquery objects that survive booleans and fillets."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 import export
 import patching
-from patching.primitives import open_grid, torus_grid
+from patching.mesh.primitives import open_grid, torus_grid
 from tests.conftest import REPO
 from tests.test_brep import net_volume
 
@@ -99,8 +99,8 @@ def test_open_surface_is_a_shell_in_both_libraries():
 def ell_mesh() -> patching.ControlMesh:
     """An L-shaped polycube (EPs of valence 3 and 5) whose strips carry intervals 0.5 to 3, so
     that the angle configuration and the anchor rule change the patches."""
-    from patching.primitives import polycube
-    from patching.topology import Topology
+    from patching.mesh.primitives import polycube
+    from patching.topology.tables import Topology
 
     cube = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 2, name="ell")
     topo = Topology(cube)

@@ -168,7 +168,7 @@ def test_build_info_check_and_version(tmp_path, run_cli):
 
     report = json.loads(check.stdout)
     assert report["valid"] and report["n_solids"] == 1 and report["n_free_edges"] == 0
-    # issue 3: round-off level, read back from the STEP (13 significant digits)
+    # round-off level, read back from the STEP (13 significant digits)
     assert report["max_gap_relative"] <= 1e-9 and report["max_normal_jump_deg"] <= 1e-6
     info = run_cli("info", mesh)
     assert info.returncode == 0 and "30 vertices, 30 faces" in info.stdout
@@ -188,7 +188,7 @@ def test_building_twice_gives_the_same_step_but_the_timestamp(tmp_path, run_cli)
     assert a.read_text() != "" and len(strip(a)) > 50
 
 
-# --- issue 5: formats, options -------------------------------------------------------------
+# --- formats, options -------------------------------------------------------------
 
 
 @pytest.mark.parametrize("args, expected", [
@@ -226,7 +226,7 @@ def test_bad_output_options_are_refused_in_one_line(tmp_path, run_cli, args, fra
 
 
 def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
-    from patching import write_obj
+    from export import write_obj
     from tests.test_cad import ell_mesh
 
     mesh = tmp_path / "ell.obj"
@@ -243,7 +243,7 @@ def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
     assert len({defaults, *others}) == 1 + len(choices)  # every rule the README names is taken
 
 
-# --- issue 5: several meshes in parallel, progress ------------------------------------------
+# --- several meshes in parallel, progress ------------------------------------------
 
 
 def test_many_meshes_in_parallel_each_failure_on_its_own_line(tmp_path, run_cli):
@@ -304,7 +304,7 @@ def test_subdivide_writes_a_mesh_that_reads_back_with_its_tags(tmp_path, run_cli
     import numpy as np
 
     import patching
-    from patching.subdivision import subdivide
+    from patching.subdivision.catmark import subdivide
 
     mesh_path = tmp_path / "ring.obj"
     mesh_path.write_text(torus_obj(5, 4, extra="t interval 2/1/0 0 4 3\nt crease 2/1/0 0 1 2.5\n"))
@@ -328,7 +328,7 @@ def test_subdivide_chaikin_creasing(tmp_path, run_cli):
     import numpy as np
 
     import patching
-    from patching.subdivision import subdivide
+    from patching.subdivision.catmark import subdivide
 
     mesh_path = tmp_path / "ring.obj"
     mesh_path.write_text(torus_obj(5, 4, extra="t crease 2/1/0 0 1 2.5\nt crease 2/1/0 1 2 0.5\n"))
@@ -395,7 +395,7 @@ def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):
 
 def test_info_reports_what_the_sharp_features_become(run_cli):
     """`nupatch info --json` on the shipped machined bracket: its corners, darts and the
-    vertices whose sectors take the EP path (patching.features)."""
+    vertices whose sectors take the EP path (patching.topology.features)."""
     import json
 
     from tests.conftest import REPO

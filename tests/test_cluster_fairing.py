@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 import patching
-from patching import cluster_fairing
-from patching.anchor_fairing import thin_plate_matrices
-from patching.evaluation import normal_turning
-from patching.features import features
-from patching.g1_patches import ep_groups
-from patching.subdivision import subdivide
-from patching.topology import Topology
+from patching.extraordinary import cluster_fairing
+from patching.extraordinary.anchor_fairing import thin_plate_matrices
+from patching.evaluation.sampling import normal_turning
+from patching.topology.features import features
+from patching.extraordinary.g1_patches import ep_groups
+from patching.subdivision.catmark import subdivide
+from patching.topology.tables import Topology
 from tests.conftest import shape_files
 from tests.test_g1_patches import quad_mesh_with_eps, shared_edge_normal_jumps, with_random_intervals
 from tests.test_operator_speed_equivalence import boundary_ep, reference_matrix
@@ -148,7 +148,7 @@ def test_a_dart_spoke_between_two_eps_joins_their_clusters():
 def test_clusters_with_sharp_spokes_stay_g1_across_smooth_edges(case, seed):
     """Clusters holding crease, dart and boundary EPs: G1 across every edge that is not sharp,
     C0 everywhere (the sharp edges' own jumps are the creases), rows of M summing to 1."""
-    from patching.features import sharp_edges
+    from patching.topology.features import sharp_edges
 
     base = {**CLUSTER_MESHES, **DART_MESHES}[case]()
     mesh = with_random_intervals(base, 20.0, seed=seed)
@@ -177,7 +177,7 @@ def test_a_cluster_over_the_cap_takes_the_seed_steps(monkeypatch, cap):
 
 def test_joint_solve_removes_the_lefthanded_folds():
     """catmark_lefthanded with random intervals (ratio 5): 17 folded patches over seeds 0-20
-    with the seed's steps, none with the joint solve (measured, issue 6 note).  Here the draw
+    with the seed's steps, none with the joint solve (measured).  Here the draw
     tests/test_shapes.py builds (seed 18), which folds three patches with the seed's steps."""
     shapes = [p for p in shape_files("catmark_") if p.stem == "catmark_lefthanded"]
     if not shapes:
@@ -196,7 +196,7 @@ def test_the_joint_solve_does_not_depend_on_the_unit_of_the_intervals(unit):
     and -5 EPs with spokes to regular vertices) intervals of 1e6 once dropped the fifth
     differences as dependent rows, intervals of 1e-6 the G1 equations (normal jumps of 13 and
     113 degrees)."""
-    from patching.primitives import polycube
+    from patching.mesh.primitives import polycube
 
     mesh = with_random_intervals(polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1), 20.0, seed=0)
     assert clusters_of(mesh)
@@ -214,7 +214,7 @@ def test_a_row_set_by_two_clusters_is_refused_not_summed(monkeypatch):
     """The guard in ClusterFairing.joint: split the cube's one cluster in two halves that share
     spokes (as ep_clusters did across darts before 7f0d700) and the build stops instead of
     summing two rules into one row."""
-    from patching import operator
+    from patching.operator import assembly as operator
 
     def halves(groups, topo, max_eps=None):
         (whole,) = cluster_fairing.ep_clusters(groups, topo, max_eps)

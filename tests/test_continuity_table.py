@@ -1,4 +1,4 @@
-"""The per-edge G0/G1 table of export.continuity (issue 5): a nudged face is found and named,
+"""The per-edge G0/G1 table of export.continuity: a nudged face is found and named,
 a correct model measures round-off, sharp edges are reported apart."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import patching
 from export.brep import to_shape
 from export.continuity import check_continuity
 from export.step import write_step
-from patching.primitives import torus_grid
+from patching.mesh.primitives import torus_grid
 from tests.test_brep import cube
 
 # A correct model: neighbours evaluate the same boundary polynomial and C1/G1 cross

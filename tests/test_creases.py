@@ -1,4 +1,4 @@
-"""Infinitely sharp creases through regular vertices (issue 4).
+"""Infinitely sharp creases through regular vertices.
 
 Across a crease each face reads a mirrored neighbour (the phantom row 2 P_0 - P_1), and the
 crease's edge and vertex points are those of the crease polygon's own cubic B-spline.  With
@@ -14,8 +14,8 @@ from OCP.TColgp import TColgp_Array1OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 import patching
-from patching.evaluation import evaluate_nets
-from patching.primitives import torus_grid
+from patching.evaluation.sampling import evaluate_nets
+from patching.mesh.primitives import torus_grid
 from patching.subdivision import limit_points, subdivide
 from tests.edge_checks import edge_jumps
 from tests.test_g1_patches import shared_edge_normal_jumps
@@ -67,7 +67,7 @@ def test_non_uniform_crease_curve_is_the_bspline_of_its_polygon(seed):
     mesh = creased_torus(du, dv, seed)
     surface = patching.build(mesh)
     # OCC's periodic cubic B-spline of the crease polygon, knots from the crease strip's
-    # intervals (DESIGN 2: pole l is P[(l - 2) mod N]).
+    # intervals (docs/knots.md: pole l is P[(l - 2) mod N]).
     poles = TColgp_Array1OfPnt(1, N)
     for l in range(1, N + 1):
         poles.SetValue(l, gp_Pnt(*map(float, mesh.vertices[idx(ROW, (l - 2) % N)])))

@@ -1,6 +1,6 @@
 """Tests for patching/eigen_polyhedron.py: the local [LFS16] rules around one vertex.
 
-References written independently here (STYLE 7): the classic Catmull-Clark masks, and a cubic
+References written independently here: the classic Catmull-Clark masks, and a cubic
 B-spline knot insertion (Boehm, The NURBS Book A5.1) taken as a tensor product.
 """
 
@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from patching import eigen_polyhedron as ep
+from patching.rules import eigen_polyhedron as ep
 
 OPTIONS = [
     ("standard", "appendix"),
@@ -52,7 +52,7 @@ def catmull_clark_matrix(n):
         m[E(i), E(i)] += 0.25
         m[E(i)] += 0.25 * (face[i - 1] + face[i])
     # vertex: (n-2)/n V + sum(E_i)/n^2 + sum(new face points)/n^2 (Catmull-Clark 1978; the
-    # same as seed 000 section 2: 1 - 7/(4n), 3/(2n^2) on E_i, 1/(4n^2) on F_i)
+    # same as [TLC] sec. 2: 1 - 7/(4n), 3/(2n^2) on E_i, 1/(4n^2) on F_i)
     m[0, 0] = (n - 2.0) / n
     for i in range(n):
         m[0, E(i)] += 1.0 / n**2
@@ -160,7 +160,7 @@ def test_valence4_is_nurbs_knot_insertion(seed, angles, lengths):
 
 def test_valence4_needs_outer_intervals_equal_to_spokes():
     # The local rule reads the spoke intervals only: it is knot insertion exactly when the
-    # edges continuing the spokes (seed 002's a_i) carry the spoke intervals, as after one
+    # edges continuing the spokes ([FSLYJ]'s a_i) carry the spoke intervals, as after one
     # refinement step.  With other a_i the NURBS refinement differs, so the rule is not it.
     d = np.array([1.0, 3.0, 2.0, 5.0])
     m = ep.local_subdivision_matrix(d)
@@ -216,14 +216,14 @@ def test_modified_angles_properties(n):
 def test_modified_angles_valence4_and_small_interval():
     th = ep.eigen_angles([1, 5, 2, 30.0], "modified")
     np.testing.assert_allclose(th, math.pi / 2, rtol=1e-14)
-    # seed 001: a spoke whose interval is tiny compared with the others makes both sectors
+    # [ZTL]: a spoke whose interval is tiny compared with the others makes both sectors
     # beside it tend to right angles (the zero-interval = double-knot limit of Fig. 4).
     th = ep.eigen_angles([1e-9, 1, 1, 1, 1], "modified")
     assert abs(th[0] - math.pi / 2) < 1e-6 and abs(th[-1] - math.pi / 2) < 1e-6
 
 
 def _seed001_angles(d):
-    """Seed 001's angle rule transcribed literally (eq. 10 and the case analysis after it, the
+    """[ZTL]'s angle rule transcribed literally (eq. 10 and the case analysis after it, the
     second "(2) n != 3" read as n = 3), loop by loop; returns (angles, branch)."""
     n = len(d)
     p = [d[i] * d[(i + 1) % n] for i in range(n)]
@@ -252,7 +252,7 @@ def _seed001_angles(d):
 
 
 def test_modified_angles_follow_seed001_text_in_every_branch():
-    """eigen_angles("modified") against the literal transcription, on seed 001's figure
+    """eigen_angles("modified") against the literal transcription, on [ZTL]'s figure
     configurations, random ones, and constructed ones reaching each branch (Fig. 5's 1, 10,
     10, 10, 10 keeps its two sectors beside the short spoke at 86.4 degrees)."""
     cases = [[1, 15, 1, 1, 15], [1, 10, 10, 10, 10], [1, 10, 10], [1, 1, 1e4, 1e4, 1e4],
@@ -390,7 +390,7 @@ def test_subdominant_double_eigenvalue_ratio_1e4_robust_valences(n, angles):
 def test_extreme_ratio_loses_the_eigen_structure(angles):
     # Finding: beyond ratio ~100 some valence-5, 8 and 12 configurations get a negative
     # eigenvalue of modulus > lambda (with either angle choice), so the vertex is not G1.  This is
-    # one of them (ratio 1e4); the same happens inside seed 001's test range [1e-6, 1].
+    # one of them (ratio 1e4); the same happens inside [ZTL]'s test range [1e-6, 1].
     for d in (
         [10000.0, 107.5090358880951, 3152.15105974721, 258.1861017480902, 1.0],
         [0.67209927957375, 0.0034093992543232, 0.0011118918743652, 0.76647357270208,
@@ -412,9 +412,9 @@ def test_appendix_lengths_double_eigenvalue_up_to_ratio_5(n):
 
 
 def test_appendix_lengths_lose_the_eigen_structure_at_ratio_10():
-    # Finding (see spoke_lengths): with the reconstructed seed 002 appendix lengths this valence-7
+    # Finding (see spoke_lengths): with the reconstructed [FSLYJ] appendix lengths this valence-7
     # vertex gets an eigenvalue of modulus > 1 (the scheme diverges); the [LFS16] lengths of
-    # seed 000 give 1 > lambda = lambda > |others| for the same intervals.
+    # [TLC] give 1 > lambda = lambda > |others| for the same intervals.
     d = [2.0, 10.0, 1.0, 10.0, 1.0, 5.0, 5.0]
     ok, _ = eigen_gap(d, lengths="appendix")
     assert not ok
@@ -533,7 +533,7 @@ def test_projector_is_seed002_q(n):
     m = ep.local_subdivision_matrix(d)
     lam = ep.characteristic_scale(n).lam
     proj = ep.tangent_projector(d)
-    # Seed 002 step 3 literally: N^ = N[1:,1:] - N[0,1:], eigen-decomposition, keep lambda.
+    # [FSLYJ] step 3 literally: N^ = N[1:,1:] - N[0,1:], eigen-decomposition, keep lambda.
     nhat = m[1:, 1:] - m[0, 1:][None, :]
     vals, u = np.linalg.eig(nhat)
     keep = np.abs(vals - lam) < 1e-8

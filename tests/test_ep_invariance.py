@@ -1,4 +1,4 @@
-"""Invariance of the EP construction (issue 6): affine invariance, relabelling, orientation
+"""Invariance of the EP construction: affine invariance, relabelling, orientation
 reversal, mirroring, and symmetry, on closed meshes with EPs of valence 3 to 6."""
 
 import dataclasses
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import patching
-from patching.primitives import polycube
+from patching.mesh.primitives import polycube
 from tests.strategies import relabelled, reversed_orientation
 from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
 from tests.test_operator import dihedral
@@ -125,9 +125,9 @@ CLUSTER_MESHES = {
 def test_the_joint_solve_of_clusters_is_invariant(name):
     """Relabelling, reversed orientation and mirroring on meshes with EP clusters, at the
     interval ratio where the joint and the seed's solves differ most (20)."""
-    from patching import cluster_fairing
-    from patching.features import features
-    from patching.g1_patches import ep_groups
+    from patching.extraordinary import cluster_fairing
+    from patching.topology.features import features
+    from patching.extraordinary.g1_patches import ep_groups
 
     mesh = with_random_intervals(CLUSTER_MESHES[name](), 20.0, seed=3)
     topo = patching.Topology(mesh)

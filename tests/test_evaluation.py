@@ -1,4 +1,4 @@
-"""The per-EP quality report (patching.evaluation): sample graph joins, local maxima counts and
+"""The per-EP quality report (patching.evaluation.sampling): sample graph joins, local maxima counts and
 spoke normal jumps, each on a case where the answer is known and on one built to fail."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import patching
-from patching.evaluation import (
+from patching.evaluation.sampling import (
     blending_maxima,
     column_values,
     count_local_maxima,
@@ -20,7 +20,7 @@ from patching.evaluation import (
     sample_graph,
     spoke_normal_jumps,
 )
-from patching.topology import Topology
+from patching.topology.tables import Topology
 
 
 def ep_disc(
@@ -233,7 +233,7 @@ def test_maxima_that_only_sampling_makes_are_not_counted():
     a bi-quintic net), has one maximum; its samples on 13..33-point grids have 3 to 9 discrete
     ones.  Newton confirmation on the patch polynomial leaves exactly the one."""
     from patching.bernstein import bernstein
-    from patching.evaluation import _confirmed_maxima
+    from patching.evaluation.sampling import _confirmed_maxima
 
     mesh = ep_disc(5)
     op = patching.build_operator(mesh)
@@ -279,7 +279,7 @@ def test_report_on_a_closed_mesh_with_adjacent_eps():
 
 
 def test_prominence_is_the_depth_of_the_dip():
-    from patching.evaluation import SampleGraph, prominences
+    from patching.evaluation.sampling import SampleGraph, prominences
 
     path = np.stack([np.arange(8), np.arange(1, 9)], axis=1)
     values = np.array([0, 1, 3, 2, 2.5, 1, 1.4, 0.5, 0.0])

@@ -1,6 +1,6 @@
-"""Exactness against OpenCASCADE's own B-splines (DESIGN 5), read back from the STEP file.
+"""Exactness against OpenCASCADE's own B-splines (docs/verification.md), read back from the STEP file.
 
-Reference: a Geom_BSplineSurface built from the same poles and knots (DESIGN 2 mapping),
+Reference: a Geom_BSplineSurface built from the same poles and knots (docs/knots.md mapping),
 split into Bézier patches by OCC's GeomConvert_BSplineSurfaceToBezierSurface.  Every face read
 back from our STEP must carry the poles of one of those patches (up to re-parametrisation);
 equal poles mean equal surfaces, and the largest pole difference bounds the distance.
@@ -23,7 +23,7 @@ from OCP.TopoDS import TopoDS
 
 import patching
 from export import read_step, to_step
-from patching.primitives import open_grid, torus_grid
+from patching.mesh.primitives import open_grid, torus_grid
 from tests.test_operator import dihedral
 
 # Relative to the mesh size: poles go through STEP as text with 15+ significant digits and
@@ -48,7 +48,7 @@ def _knots(intervals, clamp: bool):
 
 
 def _reference_patches(grid: np.ndarray, du, dv, periodic: bool) -> list[np.ndarray]:
-    """OCC's Bézier patches of the B-spline with poles grid[a, b] (DESIGN 2)."""
+    """OCC's Bézier patches of the B-spline with poles grid[a, b] (docs/knots.md)."""
     m, n, _ = grid.shape
     poles = TColgp_Array2OfPnt(1, m, 1, n)
     for k in range(1, m + 1):

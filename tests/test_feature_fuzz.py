@@ -1,4 +1,4 @@
-"""Random sharp features never give a wrong surface (issue 4): small closed and opened meshes
+"""Random sharp features never give a wrong surface: small closed and opened meshes
 with random infinitely sharp edges (darts, corners, creases through and around EPs, turning
 creases), random corner tags, every boundary mode and random strip intervals either are
 refused with one line of the error family, or build patches that are G1 across every smooth
@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import patching
 from patching.errors import NupatchError
-from patching.primitives import polycube
+from patching.mesh.primitives import polycube
 from tests.edge_checks import crease_deviation, edge_jumps
 from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
 

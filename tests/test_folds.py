@@ -1,14 +1,14 @@
-"""Folds: patches that stay G1 with their neighbours but whose normal flips inside them
-(issue 6).  ``evaluation.normal_turning`` is the detector; the cases are coarse meshes whose
+"""Folds: patches that stay G1 with their neighbours but whose normal flips inside them.  ``evaluation.normal_turning`` is the detector; the cases are coarse meshes whose
 EPs are all adjacent, where the anchors of two EPs meet on one short edge."""
 
 import numpy as np
 import pytest
 
 import patching
-from patching.auxiliary_points import onward_interval
-from patching.evaluation import normal_turning
-from patching.topology import Topology
+from export import write_obj
+from patching.extraordinary.auxiliary_points import onward_interval
+from patching.evaluation.sampling import normal_turning
+from patching.topology.tables import Topology
 from tests.test_evaluation import ep_disc
 from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, with_random_intervals
 
@@ -78,14 +78,14 @@ def test_cube_with_random_intervals_does_not_fold(anchors, angles):
 def test_fairing_never_raises_the_thin_plate_energy_of_the_defaults():
     """The damped block-Jacobi step (anchor_fairing): on a mesh of coupled EPs the faired
     surface is at least as fair as the default one, in the energy it minimises."""
-    from patching.anchor_fairing import thin_plate_matrices
+    from patching.extraordinary.anchor_fairing import thin_plate_matrices
 
     def energy(surface):
         total = 0.0
         for g in surface.groups:
             iss, ist, itt = thin_plate_matrices(g.degree)
             nets = g.coefficients.reshape(len(g.faces), -1, 3)
-            spans = patching.operator.face_spans(Topology(mesh))[g.faces]
+            spans = Topology(mesh).face_spans[g.faces]
             for net, (delta, eps) in zip(nets, spans):
                 q = eps / delta**3 * iss + 2.0 / (delta * eps) * ist + delta / eps**3 * itt
                 total += float(np.einsum("ic,ij,jc->", net, q, net))
@@ -102,7 +102,7 @@ def test_ep_quality_reports_folds():
     """``ep_quality``'s ``fold``: the smallest normal cosine on an EP's patches; the cube's EPs
     are clean, and where the seed's per-EP steps fold catmark_lefthanded (which the default
     joint solve removes: test_cluster_fairing) an EP reports it."""
-    from patching.evaluation import ep_quality
+    from patching.evaluation.sampling import ep_quality
     from tests.conftest import shape_files
 
     mesh = with_random_intervals(CUBE, 5.0, seed=0)
@@ -125,7 +125,7 @@ def ep_rich_sphere(seed: int) -> patching.ControlMesh:
     (half the vertices EPs of valence 3, 5, 6), strip intervals drawn from {1, 2, 5}."""
     import trimesh
 
-    from patching.subdivision import subdivide
+    from patching.subdivision.catmark import subdivide
 
     base = trimesh.creation.icosphere(subdivisions=2)
     quad = subdivide(patching.from_arrays(base.vertices, base.faces), 1, rules="opensubdiv")
@@ -152,7 +152,7 @@ def test_nupatch_build_warns_of_folds_and_still_writes(run_cli, tmp_path):
     catmark_lefthanded under the seed's per-EP steps (`--g1-solve seed`); the default joint
     solve does not fold it."""
     clean = tmp_path / "cube.obj"
-    patching.write_obj(with_random_intervals(CUBE, 5.0, seed=0), clean)
+    write_obj(with_random_intervals(CUBE, 5.0, seed=0), clean)
     done = run_cli("build", clean, "-o", tmp_path / "cube.step", "-q")
     assert done.returncode == 0 and "fold" not in done.stderr
     from tests.conftest import shape_files
@@ -161,7 +161,7 @@ def test_nupatch_build_warns_of_folds_and_still_writes(run_cli, tmp_path):
     if not shapes:
         pytest.skip("../shared/opensubdiv-shapes is absent")
     folded = tmp_path / "lefthanded.obj"
-    patching.write_obj(with_random_intervals(patching.read_mesh(shapes[0]), 5.0, seed=len(shapes[0].stem)), folded)
+    write_obj(with_random_intervals(patching.read_mesh(shapes[0]), 5.0, seed=len(shapes[0].stem)), folded)
     done = run_cli("build", folded, "-o", tmp_path / "lefthanded.step", "-q", "--g1-solve", "seed")
     assert done.returncode == 0 and (tmp_path / "lefthanded.step").stat().st_size > 0
     lines = [line for line in done.stderr.splitlines() if "fold over themselves" in line]

@@ -22,11 +22,12 @@ from OCP.TopTools import TopTools_IndexedMapOfShape
 
 import export.formats as formats
 import patching
+from export.tolerances import MIN_TESSELLATION
 from export.brep import to_shape
 from export.formats import FORMATS, format_of, tessellate, write
 from export.step import read_step
 from patching.errors import OutputError
-from patching.primitives import open_grid, torus_grid
+from patching.mesh.primitives import open_grid, torus_grid
 
 TESSELLATED = ("stl", "glb", "obj")
 EXACT = ("step", "iges", "brep")
@@ -222,8 +223,8 @@ def test_a_tiny_mesh_tessellates_and_a_tolerance_below_occs_precision_is_refused
     surface = patching.build(grid.with_positions(grid.vertices * 1e-6))
     for fmt in TESSELLATED:
         assert write(surface, tmp_path / f"speck.{fmt}").stat().st_size > 0
-    assert tessellate(surface).tolerance == formats.MIN_TOLERANCE
-    for tolerance in (1e-300, 0.5 * formats.MIN_TOLERANCE):
+    assert tessellate(surface).tolerance == MIN_TESSELLATION
+    for tolerance in (1e-300, 0.5 * MIN_TESSELLATION):
         with pytest.raises(patching.NupatchError, match="at least 1e-07") as info:
             write(surface, tmp_path / "bad.stl", tolerance=tolerance)
         assert "\n" not in str(info.value)
@@ -236,7 +237,7 @@ def test_two_components_tessellate_with_outward_normals(tmp_path):
     component by component and STL, glTF and OBJ stopped with an internal error (RuntimeError:
     tessellation nodes are 19.3 off the patches); check_continuity named other mesh faces than
     the ones meeting at an edge."""
-    from patching.primitives import polycube
+    from patching.mesh.primitives import polycube
 
     frame = polycube([(x, y, 0) for x in range(3) for y in range(3) if (x, y) != (1, 1)], 1)
     faces = frame.quads()

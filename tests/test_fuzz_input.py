@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import patching
 from patching.errors import NupatchError
-from patching.obj import parse_obj
+from patching.mesh.obj import parse_obj
 
 TOKENS = ["v", "f", "t", "vt", "vn", "#", "interval", "crease", "corner", "hole", "interpolateboundary",
           "2/1/0", "1/1/0", "1/0/0", "0", "1", "2", "3", "-1", "4", "1.5", "nan", "inf", "-2", "1/2/3", "x", "10"]
@@ -76,7 +76,7 @@ def test_random_small_meshes_build_or_raise_the_error_family(data):
 
 
 def _bases():
-    from patching.primitives import polycube, torus_grid
+    from patching.mesh.primitives import polycube, torus_grid
     from tests.test_g1_patches import quad_mesh_with_eps
 
     pyramid = patching.from_arrays(
@@ -141,7 +141,7 @@ def test_a_mesh_where_no_face_gives_a_patch_is_refused_in_one_line():
     (BrepError: the surface has no patches, exit 1)."""
     import pytest
 
-    from patching.primitives import open_grid
+    from patching.mesh.primitives import open_grid
     from tests.test_g1_patches import quad_mesh_with_eps
 
     grid = open_grid(4, 3)
@@ -186,7 +186,7 @@ def test_huge_coordinates_are_refused_in_one_line_naming_the_vertex(tmp_path):
     import pytest
 
     from export.formats import write
-    from patching.mesh import MAX_COORDINATE
+    from patching.mesh.control_mesh import MAX_COORDINATE
     from tests.test_g1_patches import quad_mesh_with_eps
 
     cube = quad_mesh_with_eps("cube")
@@ -213,7 +213,7 @@ def test_a_zero_strip_between_two_sharp_creases_is_refused_in_one_line():
     import pytest
 
     from export import to_shape
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
 
     base = torus_grid(5, 4)  # vertex (i, j) is 4 i + j
     def ring(j):
@@ -249,7 +249,7 @@ def test_a_tiny_knot_interval_is_named_as_a_cause_of_a_degenerate_patch():
     import pytest
 
     from export import to_shape
-    from patching.primitives import open_grid
+    from patching.mesh.primitives import open_grid
 
     grid = open_grid(4, 3)
     for value in (1e-9, 1e-11):
@@ -265,7 +265,7 @@ def test_too_many_subdivision_steps_are_refused_before_any_work():
     (exit 137, no error line).  Steps past MAX_SUBDIVIDE_FACES are refused in one line."""
     import pytest
 
-    from patching.subdivision import MAX_SUBDIVIDE_FACES, subdivide
+    from patching.subdivision.catmark import MAX_SUBDIVIDE_FACES, subdivide
     from tests.test_g1_patches import quad_mesh_with_eps
 
     cube = quad_mesh_with_eps("cube")
@@ -286,7 +286,7 @@ def test_a_knot_interval_below_1e_12_of_the_largest_is_refused_naming_its_tag():
     1e-300 on a grid was refused as a degenerate patch side.  Both name the interval now."""
     import pytest
 
-    from patching.primitives import open_grid, polycube
+    from patching.mesh.primitives import open_grid, polycube
 
     grid = open_grid(4, 3)
     ell = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1)

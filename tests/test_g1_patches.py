@@ -1,4 +1,4 @@
-"""G1 bi-quintic patches around extraordinary points (seed 002, section 3.4), checked with
+"""G1 bi-quintic patches around extraordinary points ([FSLYJ] sec. 3.4), checked with
 numpy evaluation independent of the constraint code, and through OpenCASCADE."""
 
 import numpy as np
@@ -6,12 +6,12 @@ import pytest
 
 import patching
 from patching.bernstein import elevation_matrix
-from patching.evaluation import evaluate_nets
-from patching.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
-from patching.g1_patches import blue_weights, local_index
-from patching.primitives import torus_grid
-from patching.subdivision import subdivide
-from patching.topology import Topology
+from patching.evaluation.sampling import evaluate_nets
+from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
+from patching.extraordinary.g1_patches import blue_weights, local_index
+from patching.mesh.primitives import torus_grid
+from patching.subdivision.catmark import subdivide
+from patching.topology.tables import Topology
 from tests.conftest import SHAPES
 
 
@@ -128,7 +128,7 @@ def test_faces_away_from_eps_stay_the_nurbs():
     mesh = with_random_intervals(mesh, 5.0, seed=4)
     topo = Topology(mesh)
     op = patching.build_operator(mesh)
-    from patching.bezier_extraction import cubic_extraction
+    from patching.extraordinary.extraction import cubic_extraction
 
     reg = cubic_extraction(topo, np.zeros(topo.n_vertices, bool))  # anchors nowhere
     ep = np.zeros(topo.n_vertices, bool)
@@ -207,10 +207,10 @@ def test_local_index_maps_corners():
 @pytest.mark.skipif(not SHAPES.is_dir(), reason="opensubdiv shapes absent")
 @pytest.mark.parametrize("name", ["catmark_cube", "catmark_lefthanded", "catmark_torus", "catmark_pyramid", "catmark_smoothtris0", "loop_icosahedron"])
 def test_closed_shapes_are_valid_g1_solids(name, tmp_path):
-    """Issue 6 acceptance, measured with OpenCASCADE (DESIGN 5) on the B-rep we export and on
+    """Measured with OpenCASCADE (docs/verification.md) on the B-rep we export and on
     the STEP file read back."""
     from export import check_continuity, to_shape, to_step
-    from patching.obj import read_obj
+    from patching.mesh.obj import read_obj
 
     raw = read_obj(SHAPES / f"{name}.obj")
     plain = patching.from_arrays(raw.vertices, [list(raw.face(i)) for i in range(raw.n_faces)], name=name)
@@ -232,10 +232,9 @@ def test_closed_shapes_are_valid_g1_solids(name, tmp_path):
 
 
 def _thin_plate_energy(surface, mesh):
-    from patching.anchor_fairing import _energy_blocks
-    from patching.operator import face_spans
+    from patching.extraordinary.anchor_fairing import _energy_blocks
 
-    spans = face_spans(Topology(mesh))
+    spans = Topology(mesh).face_spans
     degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in surface.groups])
     faces = np.concatenate([g.faces for g in surface.groups])
     q = _energy_blocks(degrees, spans[faces])
@@ -245,7 +244,7 @@ def _thin_plate_energy(surface, mesh):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_faired_anchors_lower_the_thin_plate_energy_and_stay_g1(seed):
-    """Anchor option 2 (issue 6 item 5): separated EPs (each face touches one), so the per-EP
+    """Anchor option 2: separated EPs (each face touches one), so the per-EP
     minimisation can only lower the total energy; row sums and G1 are kept."""
     mesh = with_random_intervals(subdivide(quad_mesh_with_eps("cube"), 1, rules="opensubdiv"), 5.0, seed)
     rng = np.random.default_rng(seed)
@@ -259,9 +258,9 @@ def test_faired_anchors_lower_the_thin_plate_energy_and_stay_g1(seed):
 
 
 def test_eigen_polyhedron_anchors_fix_the_limit_point_and_normal():
-    """Seed 002 section 3.5 step 4: the surface at the EP is [19]'s limit point, and its normal
-    is [19]'s (tangent_weights of the eigen-polyhedron rule applied to the first ring)."""
-    from patching.auxiliary_points import _anchor_weights
+    """[FSLYJ] sec. 3.5 step 4: the surface at the EP is [LFS16]'s limit point, and its normal
+    is [LFS16]'s (tangent_weights of the eigen-polyhedron rule applied to the first ring)."""
+    from patching.extraordinary.auxiliary_points import _anchor_weights
 
     mesh = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, 9)
     rng = np.random.default_rng(0)
@@ -285,7 +284,7 @@ def test_eigen_polyhedron_anchors_fix_the_limit_point_and_normal():
     anchors = _anchor_weights(tuple(d), tuple(a), "standard", "eigen-polyhedron") @ pts
     c = np.roll(d, 1) * np.roll(d, -2)
     np.testing.assert_allclose(point, (c / c.sum()) @ anchors, atol=1e-12)
-    # normal of the patch at the EP vs the plane of the anchors (which contains [19]'s tangents)
+    # normal of the patch at the EP vs the plane of the anchors (which contains [LFS16]'s tangents)
     pp, qq = local_index(corner, 1, 0), local_index(corner, 0, 1)
     normal = np.cross(nets[f][pp] - point, nets[f][qq] - point)
     normal /= np.linalg.norm(normal)

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from patching import build_operator
-from patching.primitives import open_grid, torus_grid
+from patching.mesh.primitives import open_grid, torus_grid
 from tests.strategies import relabelled, reversed_orientation, torus_meshes
 
 # Affine combinations of O(1) numbers: round-off is a few ulps times the number of terms (16).
@@ -102,7 +102,7 @@ def test_clamped_open_grid_is_an_open_shell_topology():
 
 
 def test_import_patching_loads_no_opencascade():
-    code = "import sys, patching, patching.operator; print(sorted(m for m in sys.modules if m.split('.')[0] in ('OCP', 'OCC', 'cadquery', 'build123d')))"
+    code = "import sys, patching, patching.operator.assembly; print(sorted(m for m in sys.modules if m.split('.')[0] in ('OCP', 'OCC', 'cadquery', 'build123d')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 import patching
-from patching.anchor_fairing import faired_anchors
-from patching.auxiliary_points import anchor_matrix
+from patching.extraordinary.anchor_fairing import faired_anchors
+from patching.extraordinary.auxiliary_points import anchor_matrix
 from patching.bernstein import elevation_matrix_2d
-from patching.bezier_extraction import cubic_extraction
-from patching.features import features
-from patching.g1_patches import G1Assembly, RowMixer, _green_weights, _red_operator, ep_groups
-from patching.operator import _sector_anchors, face_spans
-from patching.primitives import torus_grid
-from patching.topology import Topology
+from patching.extraordinary.extraction import cubic_extraction
+from patching.topology.features import features
+from patching.extraordinary.g1_patches import G1Assembly, RowMixer, _green_weights, _red_operator, ep_groups
+from patching.operator.assembly import _sector_anchors
+from patching.mesh.primitives import torus_grid
+from patching.topology.tables import Topology
 from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
 from tests.test_sharp_features import meridian_crease
 
@@ -38,7 +38,7 @@ def reference_matrix(
     g1_steps=(): the degree-elevated extraction itself."""
     topo = Topology(mesh)
     feats = features(topo)
-    spans = face_spans(topo)
+    spans = topo.face_spans
     has_patch = np.all(spans > 0, axis=1)
     has_patch[list(mesh.holes)] = False
     smooth = (feats.count == 0) & ~feats.corner
@@ -164,7 +164,7 @@ def test_forced_valence_4_ep_equals_the_reference():
 
 
 def test_a_warm_build_solves_no_configuration_again():
-    """The local solves are cached by configuration (DESIGN: STYLE 2); keys holding "no far
+    """The local solves are cached by configuration (by configuration); keys holding "no far
     EP" (NaN) must hit too, or every build re-solves every EP."""
     mesh = with_random_intervals(quad_mesh_with_eps("bipyramid-6"), 5.0, seed=11)
     patching.build_operator(mesh)

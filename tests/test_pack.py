@@ -1,4 +1,4 @@
-"""export.pack: regular blocks as multi-span B-spline faces, the same surface (issue 5)."""
+"""export.pack: regular blocks as multi-span B-spline faces, the same surface."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ import patching
 from export.continuity import check_continuity
 from export.pack import patch_spans, to_packed_shape
 from export.step import read_step
-from patching.evaluation import evaluate_nets
-from patching.primitives import open_grid, torus_grid
+from patching.evaluation.sampling import evaluate_nets
+from patching.mesh.primitives import open_grid, torus_grid
 from tests.test_brep import net_volume
 from tests.test_cad import ell_mesh
 

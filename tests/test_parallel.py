@@ -1,10 +1,10 @@
-"""Row-block parallel products (``patching.parallel``) are the plain products, bit for bit."""
+"""Row-block parallel products (``patching.util.parallel``) are the plain products, bit for bit."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from patching import parallel
+from patching.util import parallel
 
 
 def random_csr(rows: int, cols: int, per_row: int, seed: int, empty_rows: int = 0) -> sp.csr_matrix:
@@ -65,7 +65,8 @@ def test_builds_run_their_small_dense_solves_on_one_blas_thread(monkeypatch):
     from threadpoolctl import threadpool_limits
 
     import patching
-    from patching import g1_patches, subdivision
+    from patching.extraordinary import g1_patches
+    from patching.subdivision import catmark as subdivision
     from tests.test_g1_patches import quad_mesh_with_eps
 
     seen = []

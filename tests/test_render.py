@@ -1,5 +1,5 @@
 """export.render and `nupatch render`: headless PNGs of the requested size, not blank,
-zebra and curvature different (issue 5)."""
+zebra and curvature different."""
 
 from __future__ import annotations
 

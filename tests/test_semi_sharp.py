@@ -1,11 +1,11 @@
-"""Semi-sharp creases (issue 4): ceil(s) steps of the sharp subdivision rules, then patches."""
+"""Semi-sharp creases: ceil(s) steps of the sharp subdivision rules, then patches."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
 import patching
-from patching.evaluation import sample_surface
+from patching.evaluation.sampling import sample_surface
 from tests.test_g1_patches import shared_edge_normal_jumps
 
 CUBE_V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
@@ -53,7 +53,7 @@ def test_infinitely_sharp_cube_is_where_the_semi_sharp_ones_converge():
 
 def test_deep_semi_sharp_creases_are_refined_adaptively():
     """Sharpness 6.5 needs 7 steps, more than the 6 done globally, so
-    the refinement is adaptive (patching.adaptive): patches of several levels meeting at
+    the refinement is adaptive (patching.operator.adaptive): patches of several levels meeting at
     T-junctions, the cube's edges closer still than at sharpness 3, a valid G1 solid."""
     from export import check_continuity, to_shape
 
@@ -69,7 +69,7 @@ def crease_torus(s: float, intervals=None) -> patching.ControlMesh:
     wrote 20,480 patches for 20 faces at s = 5 on the global path."""
     import dataclasses
 
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
 
     return dataclasses.replace(torus_grid(5, 4, intervals, name="ring"), creases={(0, 4): s})
 
@@ -79,7 +79,7 @@ def test_a_small_mesh_with_a_sharpness_5_crease_is_refined_adaptively():
     MAX_AUTO_GLOBAL_FACES), so build refines adaptively: far fewer patches (632), with
     T-junctions, pointwise the global construction's surface (test_adaptive's check, against
     refinement="global"), which "global" still gives in one mesh (what --pack takes)."""
-    from patching.adaptive import adaptive_operator
+    from patching.operator.adaptive import adaptive_operator
     from tests.test_adaptive import TOL, surface_differences
 
     mesh = crease_torus(5.0)
@@ -97,8 +97,8 @@ def test_the_global_path_stays_where_the_adaptive_one_cannot_go_or_gains_nothing
     adaptive path refuses them), one step for triangles without semi-sharp tags (it refines
     every face on either path), and a small refinement (a 6-face cube at s = 3: 384 faces,
     no more than MAX_AUTO_GLOBAL_FACES)."""
-    from patching.operator import MAX_AUTO_GLOBAL_FACES
-    from patching.primitives import torus_grid
+    from patching.operator.refinement import MAX_AUTO_GLOBAL_FACES
+    from patching.mesh.primitives import torus_grid
 
     zero_strip = crease_torus(5.0, intervals=[1, 1, 0, 1, 1])  # the zero strip is 2 edges from the crease
     split = torus_grid(20, 16)
@@ -108,7 +108,7 @@ def test_the_global_path_stays_where_the_adaptive_one_cannot_go_or_gains_nothing
     # (mesh, faces of the globally refined mesh, patches: the zero strip's 4 x 4^5 faces have none)
     cases = ((zero_strip, 20 * 4**5, 16 * 4**5), (triangles, 4 * (split.n_faces - 1) + 6, None), (creased_cube(3.0), 6 * 4**3, None))
     for mesh, faces, patches in cases:
-        assert patching.operator.patched_mesh(mesh).n_faces == faces
+        assert patching.patched_mesh(mesh).n_faces == faces
         surface = patching.build(mesh)
         assert not surface.topology.has_split_sides and surface.n_patches == (patches or faces)
 
@@ -116,6 +116,6 @@ def test_the_global_path_stays_where_the_adaptive_one_cannot_go_or_gains_nothing
 def test_an_unknown_refinement_is_refused_by_patched_mesh_too():
     """patched_mesh(refinement=...) is public beside build_operator(refinement=...): a typo
     ("globl") raised nothing and silently meant "global"."""
-    for call in (patching.operator.patched_mesh, patching.build_operator):
+    for call in (patching.patched_mesh, patching.build_operator):
         with pytest.raises(ValueError, match="refinement must be one of"):
             call(creased_cube(3.0), refinement="globl")

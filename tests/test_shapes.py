@@ -10,8 +10,8 @@ import pytest
 
 import patching
 from patching.errors import NupatchError
-from patching.evaluation import normal_turning
-from patching.features import features
+from patching.evaluation.sampling import normal_turning
+from patching.topology.features import features
 from tests.conftest import shape_files
 from patching.operator import patched_mesh
 from tests.edge_checks import brep_smooth_jump, crease_deviation, edge_jumps
@@ -29,7 +29,7 @@ REFUSALS = {
 }
 #: Random strip intervals around a triangle or pentagon have no consistent split (issue note).
 RANDOM_REFUSAL = "unequal knot intervals"
-#: Shapes whose surface folds (a patch's normal turns back inside it; issue 6 note).  Before the
+#: Shapes whose surface folds (a patch's normal turns back inside it).  Before the
 #: joint solve of EP clusters (``cluster_fairing``), the lefthanded plate with random intervals
 #: folded three patches: its intervals (ratio 4.4 across adjacent valence-3 and -5 EPs) run
 #: against its control net's spacing, and the seed's per-EP steps sheared the patches beside
@@ -85,5 +85,5 @@ def test_shape_builds_or_is_refused_in_one_line(path, intervals):
     assert gaps.max(initial=0.0) <= 1e-12 * surface.size
     assert angles[~sharp].max(initial=0.0) <= 1e-6
     assert crease_deviation(patched, surface) <= 1e-9 * surface.size
-    # and the same G1 measured by OpenCASCADE on the exported B-rep (DESIGN 5)
+    # and the same G1 measured by OpenCASCADE on the exported B-rep (docs/verification.md)
     assert brep_smooth_jump(patched, surface) <= 1e-6

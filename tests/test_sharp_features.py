@@ -1,4 +1,4 @@
-"""Sharp features through extraordinary points, corners and boundary EPs (seed 002 section 4.2).
+"""Sharp features through extraordinary points, corners and boundary EPs ([FSLYJ] sec. 4.2).
 
 Each case is measured with numpy on the patches (tests/edge_checks.py): the normal angle across
 every smooth mesh edge (G1), the gap across every edge, and the distance from every patch side
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import patching
-from patching.features import features
-from patching.subdivision import subdivide
-from patching.topology import Topology
+from patching.topology.features import features
+from patching.subdivision.catmark import subdivide
+from patching.topology.tables import Topology
 from tests.edge_checks import crease_deviation, edge_jumps
 from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, quad_mesh_with_eps, with_random_intervals
 
@@ -49,7 +49,7 @@ def test_sharp_cube_reproduces_the_cube(intervals, tagged):
     """All 12 edges infinitely sharp (and optionally corner tags): every vertex is a corner
     whose sectors are single faces, so each face is the bilinear square of its corners: planar,
     with straight edges, whatever the intervals."""
-    from patching.evaluation import evaluate_nets
+    from patching.evaluation.sampling import evaluate_nets
 
     mesh = sharp_cube(intervals, tagged)
     surface = patching.build(mesh)
@@ -70,7 +70,7 @@ def test_refined_sharp_cube_with_non_uniform_intervals_is_still_the_cube():
     x, w = np.polynomial.legendre.leggauss(10)
     x, w = (x + 1) / 2, w / 2
     s, t, ww = np.repeat(x, 10), np.tile(x, 10), np.outer(w, w).ravel()
-    from patching.evaluation import evaluate_nets
+    from patching.evaluation.sampling import evaluate_nets
 
     area = 0.0
     for _, _, _, net in surface.patches():
@@ -128,7 +128,7 @@ def test_crease_through_an_ep_exports_a_valid_solid():
 def test_crease_turning_at_regular_vertices(ratio):
     """A rectangular crease loop on a torus turns at four valence-4 vertices: a one-face and a
     three-face sector there, the latter built as a sector EP with angle pi."""
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
 
     m, n = 8, 6
     grid = torus_grid(m, n)
@@ -217,7 +217,7 @@ def test_dart_fades_the_crease_out(ratio):
     vertex keeps its smooth vertex point, all patches around it share one tangent plane there,
     and only the sharp spoke loses its G1 constraint; every smooth edge stays G1, and the
     crease is a real crease (a normal jump) away from the darts."""
-    from patching.primitives import torus_grid
+    from patching.mesh.primitives import torus_grid
 
     m, n = 8, 6
     grid = torus_grid(m, n)
@@ -232,7 +232,7 @@ def test_dart_fades_the_crease_out(ratio):
     _, gaps, angles, sharp = edge_jumps(mesh, surface)
     assert gaps.max() <= 1e-12 * surface.size and angles[~sharp].max() <= 1e-7
     assert angles[sharp].min() > 1.0  # sharp away from the darts
-    from patching.evaluation import evaluate_nets
+    from patching.evaluation.sampling import evaluate_nets
 
     for dart in (ids(2, 0), ids(2, 2)):
         normals = []
@@ -249,7 +249,7 @@ def test_dart_fades_the_crease_out(ratio):
 
 
 def test_shipped_machined_bracket():
-    """models/machined_bracket.obj (issue 4's mechanical part): corners (at the concave ones,
+    """models/machined_bracket.obj (a mechanical part): corners (at the concave ones,
     valence-5 EPs, sectors of three faces take the EP path), darts and non-uniform intervals;
     the top is exactly planar, the rest G1 off its creases."""
     from pathlib import Path
@@ -268,7 +268,7 @@ def test_shipped_machined_bracket():
     # and it does not fold: the Jacobian keeps its sign on every top patch, also at the concave
     # corners, whose three-quad sectors span 3 pi / 2 (g1_patches.corner_sector_angle; pi / 2
     # folded 1% of those patches)
-    from patching.evaluation import evaluate_nets
+    from patching.evaluation.sampling import evaluate_nets
 
     g = np.linspace(0, 1, 21)
     _, ds, dt = evaluate_nets(np.array([net for net in on_top if net.shape[0] == 6]), np.repeat(g, 21), np.tile(g, 21), derivatives=True)
@@ -279,7 +279,7 @@ def test_shipped_machined_bracket():
 
 @pytest.mark.parametrize("n", [64, 100])
 def test_high_valence_poles(n):
-    """Poles of valence 64 and more (issue 4): bipyramid-n with random intervals is a valid G1
+    """Poles of valence 64 and more: bipyramid-n with random intervals is a valid G1
     solid; the angle configuration and the local solves scale to these rings."""
     from export import check_continuity, to_shape
 

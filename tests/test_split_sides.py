@@ -1,4 +1,4 @@
-"""Split patch sides (T-junctions): patching.split_sides builds the PatchTopology, and
+"""Split patch sides (T-junctions): patching.operator.split_sides builds the PatchTopology, and
 export.brep.to_shape turns it into one valid shared-topology B-rep.
 
 The surfaces are made by de Casteljau splitting, so the exact answer is known: a ring of
@@ -27,8 +27,8 @@ from export.continuity import check_continuity
 from export.pack import find_blocks, to_packed_shape
 from export.step import read_step, write_step
 from patching.errors import UnsupportedError
-from patching.evaluation import sample_graph
-from patching.split_sides import split_side_topology
+from patching.evaluation.sampling import sample_graph
+from patching.operator.split_sides import split_side_topology
 from patching.surface import CORNER_PARAMETERS, BezierSurface, PatchGroup
 
 try:
@@ -109,7 +109,7 @@ def ring_patches(m: int = 6, n: int = 5, split=()) -> list[tuple[tuple[float, fl
 
 
 def junctions(patches, m: int, n: int) -> np.ndarray:
-    """The junction table of square patches on the periodic domain (as patching.adaptive
+    """The junction table of square patches on the periodic domain (as patching.operator.adaptive
     gives it): rows (coarse, side, fine, side, u0, u1) for every pair of sides on one grid
     line that overlap and run opposite ways; equal sides listed once."""
     sides = []
@@ -342,12 +342,12 @@ ADAPTIVE_CASES = adaptive_cases()
 
 @pytest.mark.parametrize("name,mesh", ADAPTIVE_CASES, ids=[c[0] for c in ADAPTIVE_CASES])
 def test_adaptive_patches_give_a_valid_b_rep(name, mesh):
-    """patching.adaptive's leaves and junction table through ``adaptive_surface``: one valid
+    """patching.operator.adaptive's leaves and junction table through ``adaptive_surface``: one valid
     solid (closed) or shell (open) with split sides, every inner edge G1 with round-off gaps,
     and for the closed ones the volume of the global construction's surface."""
     import patching
-    from patching.adaptive import adaptive_operator
-    from patching.split_sides import adaptive_surface
+    from patching.operator.adaptive import adaptive_operator
+    from patching.operator.split_sides import adaptive_surface
 
     ap = adaptive_operator(mesh)
     surface = adaptive_surface(ap, mesh.vertices, name)

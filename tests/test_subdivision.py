@@ -1,6 +1,6 @@
-"""Subdivision (issue 7): the sparse operator S against small, loop-based references written
+"""Subdivision: the sparse operator S against small, loop-based references written
 here from the rules as published (classic Catmull-Clark; OpenSubdiv's documented Catmark,
-crease and boundary rules; Biermann-Levin-Zorin as seed 000 section 2 states them), against
+crease and boundary rules; Biermann-Levin-Zorin as [TLC] sec. 2 states them), against
 OpenCASCADE's knot insertion for non-uniform regular regions, and on the OpenSubdiv shapes.
 """
 
@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 
 from patching.errors import KnotError, MeshError, UnsupportedError
-from patching.mesh import from_arrays
-from patching.obj import read_obj, write_obj
-from patching.primitives import open_grid, torus_grid
+from patching.mesh.control_mesh import from_arrays
+from export import write_obj
+from patching.mesh.obj import read_obj
+from patching.mesh.primitives import open_grid, torus_grid
 from patching.subdivision import limit_points, limit_tangents, subdivide, subdivision_operator
 from tests.conftest import shape_files
 
@@ -35,7 +36,7 @@ def _manifold_shapes():
     out = []
     for path in shape_files("catmark_"):
         try:
-            from patching.topology import Topology
+            from patching.topology.tables import Topology
 
             Topology(_read(path))
         except MeshError:
@@ -109,7 +110,7 @@ def reference_step(mesh, rules: str, creasing: str = "uniform"):
         return (min(a, b), max(a, b))
 
     def theta(a, b, child: bool):
-        """BLZ theta at tagged vertex a for the untagged edge a-b (seed 000 section 2)."""
+        """BLZ theta at tagged vertex a for the untagged edge a-b ([TLC] sec. 2)."""
         sharp = lambda k: (dec(edge_sharp(k)) if child else edge_sharp(k)) > 0  # noqa: E731
         n_sharp = sum(sharp(key(a, w)) for w in vert_nbrs[a])
         vs = dec(vertex_sharp(a)) if child else vertex_sharp(a)
@@ -212,7 +213,7 @@ def _untagged(mesh):
 
 
 def _is_closed(mesh):
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     return not Topology(mesh).edge_is_boundary.any()
 
@@ -320,7 +321,7 @@ def test_chaikin_halves_on_cube_creases1():
     S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method="chaikin")
     Su, child_u = subdivision_operator(mesh, rules="opensubdiv")
     nf, ne = mesh.n_faces, S.shape[0] - mesh.n_faces - mesh.n_vertices
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     edges = [tuple(e) for e in Topology(mesh).edges.tolist()]
     e35, e13 = edges.index((3, 5)), edges.index((1, 3))
@@ -378,7 +379,7 @@ def test_nonmanifold_refused_naming_the_place(path):
 
 
 # ---------------------------------------------------------------------------------------------
-# 4. Seed rules with uniform intervals: Biermann-Levin-Zorin (seed 000 section 2)
+# 4. Seed rules with uniform intervals: Biermann-Levin-Zorin ([TLC] sec. 2)
 
 
 @pytest.mark.skipif(not SHAPES, reason="opensubdiv-shapes folder absent")
@@ -424,7 +425,7 @@ def test_refined_mesh_tags_and_obj_round_trip(tmp_path):
         corners={12: 1.5}, holes=[0], interpolate_boundary=2,
     )
     S, child = subdivision_operator(mesh)
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     pt, ct = Topology(mesh), Topology(child)
     nf, ne = mesh.n_faces, pt.n_edges
@@ -464,7 +465,7 @@ def test_subdivide_steps_and_bad_options():
 
 
 def _occ_refined_poles(grid, du, dv):
-    """Poles of OCC's periodic bicubic B-spline (DESIGN 2 mapping) after inserting the midpoint
+    """Poles of OCC's periodic bicubic B-spline (docs/knots.md mapping) after inserting the midpoint
     of every knot interval with InsertUKnot / InsertVKnot."""
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
@@ -508,7 +509,7 @@ def _refined_ids(mesh, vid, fid):
     ids (2m, 2n): [2a, 2b] vertex point, [2a+1, 2b] edge point of (a, b)-(a+1, b), [2a, 2b+1]
     of (a, b)-(a, b+1), [2a+1, 2b+1] face point; and the child face ids (2m, 2n) in the same
     convention (child face h sits at the corner origin(h) of its parent face)."""
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     nf, ne = mesh.n_faces, t.n_edges
@@ -610,7 +611,7 @@ def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0, oute
 def _ring_ids(mesh, v):
     """[V, E_0.., F_0..] of vertex v (eigen_polyhedron's order) and the child ids of the same
     points after one step."""
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     ring = t.one_ring(v)
@@ -621,7 +622,7 @@ def _ring_ids(mesh, v):
 
 @pytest.mark.parametrize("n", [3, 5, 6, 9])
 def test_ep_rows_are_the_eigen_polyhedron_matrix(n):
-    from patching import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
 
     rng = np.random.default_rng(n)
     mesh = polar_disk(n, spoke_intervals=rng.uniform(1, 4, n))
@@ -648,7 +649,7 @@ def test_ep_with_equal_spoke_intervals_is_catmull_clark():
     S, _ = subdivision_operator(mesh)
     parent, kids, _ = _ring_ids(mesh, 0)
     fp, ep, vp = reference_step(mesh, "cc")
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     expected = {0 + mesh.n_faces + t.n_edges: vp[0]}
@@ -672,8 +673,8 @@ def _subdominance(matrix):
 @pytest.mark.parametrize("n", range(3, 17))
 def test_ep_eigenvalues_double_subdominant(n):
     """The EP block of S (level 1, stationary) has 1 > lambda = lambda > |others|, for random
-    spoke intervals with ratio up to 5 (seed 002 section 3.6's range)."""
-    from patching import eigen_polyhedron as eig
+    spoke intervals with ratio up to 5 ([FSLYJ] sec. 3.6's range)."""
+    from patching.rules import eigen_polyhedron as eig
 
     lam = eig.characteristic_scale(n).lam
     rng = np.random.default_rng(100 + n)
@@ -690,7 +691,7 @@ def test_ep_eigenvalues_double_subdominant(n):
 
 @pytest.mark.parametrize("n", [3, 5, 8])
 def test_limit_point_from_left_eigenvector_matches_repeated_subdivision(n):
-    from patching import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
 
     rng = np.random.default_rng(7 * n)
     mesh = polar_disk(n, rings=2, spoke_intervals=rng.uniform(1, 5, n), seed=n)
@@ -719,7 +720,7 @@ def test_limit_point_from_left_eigenvector_matches_repeated_subdivision(n):
 
 
 def _occ_refined_curve(points, d):
-    """Poles of OCC's periodic cubic B-spline curve (DESIGN 2 mapping) after midpoint insertion."""
+    """Poles of OCC's periodic cubic B-spline curve (docs/knots.md mapping) after midpoint insertion."""
     from OCP.Geom import Geom_BSplineCurve
     from OCP.gp import gp_Pnt
     from OCP.TColgp import TColgp_Array1OfPnt
@@ -771,7 +772,7 @@ def test_nonuniform_open_grid_boundary_interpolates_corners_and_is_c0():
     """interpolateboundary 1: corners stay, boundary points depend on boundary points only."""
     mesh = open_grid(6, 5, u_intervals=[1, 3, 2, 5, 1], v_intervals=[2, 1, 4, 1])
     S, child = subdivision_operator(mesh)
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     nf, ne = mesh.n_faces, t.n_edges
@@ -851,7 +852,7 @@ def test_limit_points_invariant_under_subdivision(name, make, rules):
     """The limit masks are left eigenvectors of the stationary rules: the limit of a vertex
     computed on the mesh and on its refinement agree to round-off."""
     from patching.subdivision import limit_points
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     mesh = make()
     if rules == "opensubdiv" and "nonuniform" in name:
@@ -870,7 +871,7 @@ def test_limit_points_invariant_under_subdivision(name, make, rules):
 @pytest.mark.parametrize("name,make", _limit_cases()[:2] + [c for c in _limit_cases() if c[0] in ("catmark_tent_creases0", "catmark_cube_corner3", "catmark_pyramid")])
 def test_repeated_subdivision_converges_to_limit_points(name, make):
     from patching.subdivision import limit_points
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     mesh = make()
     size = _size(mesh)
@@ -942,14 +943,14 @@ def test_relabelling_and_face_rotation_invariance(make, seed):
 
 
 # ---------------------------------------------------------------------------------------------
-# Seed 000 section 4: generalised eigen-polyhedra at tagged vertices (non-uniform)
+# [TLC] sec. 4: generalised eigen-polyhedra at tagged vertices (non-uniform)
 
 
 def _random_strip_intervals(mesh, ratio=3.0, seed=0):
     """The same mesh with a random interval in [1, ratio] on every strip."""
     from dataclasses import replace
 
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     rng = np.random.default_rng(seed)
@@ -968,14 +969,14 @@ def _random_strip_intervals(mesh, ratio=3.0, seed=0):
     ],
 )
 def test_tagged_vertex_rules_satisfy_the_generalised_eigen_relation(kind, n, sharp, boundary):
-    from patching.subdivision_rules import CORNER, CREASE, DART, tagged_vertex_rules
+    from patching.rules.catmark import CORNER, CREASE, DART, tagged_vertex_rules
 
     k = {"crease": CREASE, "dart": DART, "corner": CORNER}[kind]
     rng = np.random.default_rng(n)
     for trial in range(3):
         d = tuple(rng.uniform(1, 4, n)) if trial else (1.0,) * n
         m, defined, p0, t = tagged_vertex_rules(k, d, sharp, boundary)
-        # rows sum to one; defined rows map P^0 to P^0 / 2 + T (seed 000 eqs. 17, 22)
+        # rows sum to one; defined rows map P^0 to P^0 / 2 + T ([TLC] eqs. 17, 22)
         assert np.abs(m[defined].sum(axis=1) - 1).max() < 1e-14
         if kind != "corner":  # a corner's relation holds per sector frame (p0 is the first's)
             assert np.abs(m[defined] @ p0 - (0.5 * p0[defined] + t)).max() < 1e-13
@@ -988,18 +989,18 @@ def test_tagged_vertex_rules_satisfy_the_generalised_eigen_relation(kind, n, sha
                 i = r - 1 - n
                 assert np.allclose(m[r][[0, 1 + i, 1 + (i + 1) % n, r]], 0.25, atol=1e-14)
             if kind == "dart":
-                # Catmull-Clark on old points (seed 000 section 2: beta_1 = 3/2n, beta_2 = 1/4n)
+                # Catmull-Clark on old points ([TLC] sec. 2: beta_1 = 3/2n, beta_2 = 1/4n)
                 cc = np.concatenate([[1 - 7 / (4 * n)], np.full(n, 3 / (2 * n**2)), np.full(n, 1 / (4 * n**2))])
                 assert np.abs(m[0] - cc).max() < 1e-14
 
 
 def test_tagged_rules_with_equal_intervals_are_not_blz_off_pi_over_2():
-    """Recorded finding: seed 000's section 4 edge form (27) with equal intervals gives, next to
+    """Recorded finding: [TLC]'s section 4 edge form (27) with equal intervals gives, next to
     a crease vertex of sector size 3 (theta = pi/3), weights (3/4 - g, g) on the ends with
     g = 3/8 - 3 cos(theta)/16 = 9/32 and (1/8 - g/6, g/6) on the far points, not section 2's
     (BLZ) g = 3/8 - cos(theta)/4 = 1/4 with 1/16 on the far points; both satisfy the
     eigen relation.  So seed rules keep BLZ where the spoke intervals are equal."""
-    from patching.subdivision_rules import CREASE, tagged_vertex_rules
+    from patching.rules.catmark import CREASE, tagged_vertex_rules
 
     m, defined, _, _ = tagged_vertex_rules(CREASE, (1.0,) * 5, (0, 3), False)
     row = m[2]  # spoke 1, inside the 3-face sector
@@ -1015,7 +1016,7 @@ def test_nonuniform_seed_rules_on_shapes(path):
     crease curves are decoupled (a crease point depends on crease points only), and the limit
     points are invariant under refinement."""
     from patching.subdivision import limit_points
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     mesh = _random_strip_intervals(subdivide(_read(path)), seed=1)
     try:
@@ -1043,9 +1044,9 @@ def test_nonuniform_seed_rules_on_shapes(path):
 
 @pytest.mark.parametrize("n", [3, 5, 7])
 def test_modified_angles_option_reaches_the_ep_rows(n):
-    """angles="modified" (seed 001) changes the EP rows for unequal spokes, and they are
+    """angles="modified" ([ZTL]) changes the EP rows for unequal spokes, and they are
     eigen_polyhedron's modified local matrix; equal spokes give Catmull-Clark either way."""
-    from patching import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
 
     rng = np.random.default_rng(n)
     mesh = polar_disk(n, spoke_intervals=rng.uniform(1, 10, n))
@@ -1100,7 +1101,7 @@ def test_limit_normals_point_like_the_faces(stem):
 
 
 def _occ_clamped(grid, du, dv):
-    """OCC's clamped B-spline surface of an open grid whose outer strips carry 0 (DESIGN 2):
+    """OCC's clamped B-spline surface of an open grid whose outer strips carry 0 (docs/knots.md):
     the zero intervals are the end knots' extra multiplicity."""
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
@@ -1140,7 +1141,7 @@ def _occ_insert_midpoints(surf):
 def _open_refined_ids(mesh, vid):
     """Child ids (2m-1, 2n-1) of an open grid whose points have parent ids vid (m, n): vertex
     points at even (a, b), edge points at one odd index, face points at two."""
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     t = Topology(mesh)
     nf, ne = mesh.n_faces, t.n_edges
@@ -1173,14 +1174,14 @@ def _clamped_grids():
 
 @pytest.mark.parametrize("name,mesh,shape", list(_clamped_grids()), ids=lambda x: x if isinstance(x, str) else "")
 def test_clamped_open_grid_steps_equal_occ_knot_insertion(name, mesh, shape):
-    """Zero outer strips (DESIGN 2: the clamped NURBS), three steps: every step is OpenCASCADE's
+    """Zero outer strips (docs/knots.md: the clamped NURBS), three steps: every step is OpenCASCADE's
     midpoint knot insertion on the clamped surface, and the extra points of the zero strips
     (a zero interval splits into two zero halves) all lie on the boundary curve, so that the
     zero-width faces stay degenerate and the next step reads the same clamped NURBS.  Before
     the boundary lines were continued in ``_Context.ahead``, the edge points of the spokes into
     the boundary read other knots than the boundary curve: the extra points left the boundary
     and the second step's poles next to it were off by 5e-2."""
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     m, n = shape
     vid = np.arange(m * n).reshape(m, n)  # open_grid's and the model's numbering
@@ -1216,10 +1217,10 @@ def test_local_solves_are_vectorised_over_vertices(monkeypatch):
     of all tagged vertices of one kind and shape, in one vectorised call each: the number of
     calls does not grow with the number of vertices (the cold construction speed of
     benchmarks/subdivide.py rests on it)."""
-    from patching import eigen_polyhedron as eig
-    from patching.primitives import polycube
-    from patching.subdivision import _Context
-    from patching.subdivision_rules import SMOOTH
+    from patching.rules import eigen_polyhedron as eig
+    from patching.mesh.primitives import polycube
+    from patching.subdivision.context import _Context
+    from patching.rules.catmark import SMOOTH
 
     calls = []
     solve = eig.bilinear_inverse
@@ -1247,7 +1248,7 @@ def test_local_solves_are_vectorised_over_vertices(monkeypatch):
 
 
 def test_tagged_rules_batch_equals_one_vertex_at_a_time():
-    from patching.subdivision_rules import CORNER, CREASE, DART, tagged_rules_batch, tagged_vertex_rules
+    from patching.rules.catmark import CORNER, CREASE, DART, tagged_rules_batch, tagged_vertex_rules
 
     rng = np.random.default_rng(8)
     for kind, n, sharp, boundary in [(DART, 5, (0,), False), (CREASE, 6, (0, 3), False),
@@ -1305,7 +1306,7 @@ def test_valence2_with_nonuniform_intervals(seed):
     halves of a spoke carry one interval: module docstring); the limit point (CC's mask) is
     that of repeated subdivision, whose error falls by the subdominant 1/4 a step."""
     from patching.subdivision import limit_operator
-    from patching.topology import Topology
+    from patching.topology.tables import Topology
 
     mesh = _random_strip_intervals(_valence2_grid(5), ratio=5.0, seed=seed)
     x = mesh.n_vertices - 1
@@ -1357,8 +1358,8 @@ def test_valence2_uniform_equals_catmull_clark_and_tags_pass():
         assert np.abs(np.asarray(S.sum(axis=1)).ravel() - 1).max() < 1e-15
         if len(creases) == 2:  # crease vertex: the curve rule along a - X - c, whose ends a and
             # c are darts (valence 5, one sharp edge): the mirror interval beyond them
-            from patching.subdivision_rules import curve_vertex_weights
-            from patching.topology import Topology
+            from patching.rules.catmark import curve_vertex_weights
+            from patching.topology.tables import Topology
 
             t = Topology(tagged)
             da, dc = (float(t.edge_interval[t.edges.tolist().index(sorted(e))]) for e in ([a, x], [x, c]))
@@ -1374,7 +1375,7 @@ def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
     (test_eigen_polyhedron::test_extreme_ratio_loses_the_eigen_structure), S's own EP block on a
     mesh is the same matrix and is broken the same way; the earlier S-side check only drew
     intervals uniformly in [1, r], whose true ratio max/min is about n + 1."""
-    from patching import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
 
     d = [10000.0, 107.5090358880951, 3152.15105974721, 258.1861017480902, 1.0]
     mesh = polar_disk(5, rings=2, spoke_intervals=d, outer="spoke")
@@ -1397,15 +1398,15 @@ def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
 
 
 def test_concave_corner_sector_takes_blz_concave_rule_without_a_tag():
-    """Seed 000 section 2 (BLZ): next to a corner, an untagged edge's point uses
+    """[TLC] sec. 2 (BLZ): next to a corner, an untagged edge's point uses
     gamma = 3/8 - cos(theta)/4 with theta = alpha/m (convex) or (2 pi - alpha)/m (concave),
     alpha the angle between the sector's two crease edges.  The L's inner top corner is
     concave: its top sector has m = 3 squares and alpha = pi/2 between the rim edges, so BLZ
     gives theta = pi/2, gamma = 3/8 (the standard weights), while the convex reading would give
     theta = pi/6, gamma = 0.158.  The seed rules' topological sector angle (pi/2 per quad,
-    patching.subdivision's docstring) reproduces the concave rule without any tag."""
-    from patching.primitives import polycube
-    from patching.topology import Topology
+    patching.subdivision.catmark's docstring) reproduces the concave rule without any tag."""
+    from patching.mesh.primitives import polycube
+    from patching.topology.tables import Topology
 
     base = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 1)
     topo = Topology(base)

@@ -1,11 +1,11 @@
-"""Zero knot intervals (multiple knots, DESIGN 2) with semi-sharp creases: the steps that
+"""Zero knot intervals (multiple knots, docs/knots.md) with semi-sharp creases: the steps that
 build_operator takes for the creases split a zero strip into 2^k zero strips, which is knot
 insertion of the same knot (the surface is the input's), not a tear; tears are judged on the
 user's mesh and named by its ids.  Refused, in one line naming the user's ids: semi-sharp tags
 next to a zero interval (the subdivision rules there jump away from the intervals' eps -> 0
 limit and fold the patches), infinitely sharp tags next to a zero interval when the mesh is
 subdivided (the same jump: a valid solid 0.968 away from its eps limit), and zero intervals on
-the adaptive path (the patches of several levels leave the B-rep open).  Seed 000's tagged
+the adaptive path (the patches of several levels leave the B-rep open).  [TLC]'s tagged
 rules themselves take a zero spoke and give their eps -> 0 limit (subdivision_rules); the
 build does not use them there yet, because that limit opens the zero strip."""
 
@@ -14,11 +14,11 @@ import pytest
 
 import export
 import patching
-from patching.adaptive import child_parameters
-from patching.eigen_polyhedron import BilinearError
+from patching.operator.adaptive import child_parameters
+from patching.rules.eigen_polyhedron import BilinearError
 from patching.errors import KnotError, UnsupportedError
-from patching.evaluation import evaluate_nets
-from patching.subdivision_rules import CORNER, CREASE, DART, tagged_rules_batch
+from patching.evaluation.sampling import evaluate_nets
+from patching.rules.catmark import CORNER, CREASE, DART, tagged_rules_batch
 from tests.test_adaptive import torus
 
 M, N = 12, 10  # torus(12, 10): vertex (i, k) is 10 i + k, face (i, k) is [10 i + k, 10 (i + 1) + k, ...]
@@ -148,7 +148,7 @@ def test_semi_sharp_corner_next_to_a_zero_interval_is_refused():
 
 
 def test_zero_interval_on_the_adaptive_path_is_refused_in_one_line():
-    """s = 7 is refined adaptively (patching.adaptive), whose patches of several levels left
+    """s = 7 is refined adaptively (patching.operator.adaptive), whose patches of several levels left
     an open shell with a zero strip (no solid, 2,560 free edges)."""
     with pytest.raises(UnsupportedError) as err:
         patching.build_operator(mesh(ONE_STRIP, {(33, 34): 7.0}))
@@ -157,7 +157,7 @@ def test_zero_interval_on_the_adaptive_path_is_refused_in_one_line():
     assert "edge 0-10" in message and "adaptive" in message, message
 
 
-# Seed 000's generalised eigen-polyhedron rules at a zero spoke (subdivision_rules): the rule at
+# [TLC]'s generalised eigen-polyhedron rules at a zero spoke (subdivision_rules): the rule at
 # 0 is the limit of the rules at eps -> 0 where the formulas are defined there, and raises where
 # they are not.  Before: every zero spoke was a ValueError ("finite positive intervals").
 TAGGED = [(DART, n, (0,), False) for n in range(3, 7)]

@@ -1,6 +1,6 @@
-"""A ``PatchTopology`` with split sides from a table of T-junctions (groundwork for issue 4).
+"""A ``PatchTopology`` with split sides from a table of T-junctions.
 
-Feature-adaptive refinement (``patching.adaptive``) leaves patches of different levels side
+Feature-adaptive refinement (``patching.operator.adaptive``) leaves patches of different levels side
 by side: a coarse patch side meets 2^k finer sides.  Its ``junctions`` table has a row per
 pair of sides that meet,
 
@@ -20,7 +20,7 @@ T-vertex.  Corners around an interior vertex are chained through the sides that 
 pinch).  Ids are numbered in order of first use (vertices: corners row by row; edges: pieces
 in side order), and an edge runs along its first whole-side piece, as ``PatchTopology``
 requires; on a closed consistently oriented surface without T-junctions this is the topology
-that ``patching.patch_topology`` gives.
+that ``patching.topology.patch_topology`` gives.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .surface import BezierSurface, PatchGroup, PatchTopology
+from patching.surface import BezierSurface, PatchGroup, PatchTopology
 
 __all__ = ["split_side_topology", "adaptive_surface", "adaptive_layout"]
 
@@ -158,7 +158,7 @@ def adaptive_layout(patches) -> tuple[np.ndarray, np.ndarray]:
 
 
 def adaptive_surface(patches, points: np.ndarray, name: str = "adaptive", size: float | None = None) -> BezierSurface:
-    """The ``BezierSurface`` of adaptive patches (``patching.adaptive.AdaptivePatches``) on
+    """The ``BezierSurface`` of adaptive patches (``patching.operator.adaptive.AdaptivePatches``) on
     control points (n0, 3): one group per degree, ``faces`` = adaptive patch ids, topology
     from the junction table (``split_side_topology``, patch ids mapped to rows).
 

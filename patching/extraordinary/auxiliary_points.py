@@ -1,10 +1,10 @@
-"""Positions of the auxiliary control points (anchors) around an EP (seed 002, section 3.5).
+"""Positions of the auxiliary control points (anchors) around an EP ([FSLYJ] sec. 3.5).
 
 The anchors A_i (one per face i around an EP of valence n) are free; the default rule puts
 them so that the patched surface has, at the EP, the limit point and the tangent plane of the
-eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([19], ``eigen_polyhedron``):
+eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([LFS16], ``eigen_polyhedron``):
 
-1. A first ring [V, E_0.., F_0..] from the control points with the extraction of [32]:
+1. A first ring [V, E_0.., F_0..] from the control points with the extraction of [SSEL13]:
    F_i = bilinear(P_0, P_{E_i}, P_{F_i}, P_{E_{i+1}}) at (w_i, w_{i+1}),
    w_i = (d_{i-2} + d_{i+2}) / (d_{i-2} + d_{i+2} + 2 d_i + 2 a_i), a_i the interval of the
    edge that continues spoke i beyond E_i (``onward_interval``: its reading at an irregular E_i);
@@ -16,7 +16,7 @@ eigen-polyhedron subdivision of Li-Finnigan-Sederberg ([19], ``eigen_polyhedron`
 5. (ours) Plus the part of the dropped components that the EP cannot see: the difference
    between the "extraction" anchors below and these, projected onto the anchor changes that
    leave both the corner point (eq. 3) and the edge points on the spokes (eq. 1) unchanged.
-   Those are all the stage-1 G1 solve reads of the tangent plane, so it stays [19]'s exactly,
+   Those are all the stage-1 G1 solve reads of the tangent plane, so it stays [LFS16]'s exactly,
    while the twist comes back: at a forced valence-4 vertex with uniform intervals the
    bicubic B-spline is reproduced (its face points differ from their tangent-plane
    projections by an alternating pattern, which is in that null space).  For odd valence or
@@ -27,11 +27,11 @@ ring (P_0 the EP, then E_i = far end of spoke i, then F_i = far corner of face i
 
 Step 3 projects the anchors onto the tangent plane: every first-order input of the G1 solve
 at the EP then lies in that plane, which is what makes the surface's tangent plane exactly
-[19]'s, but it also drops the twist and curvature of the ring; step 5 gives back the part of
+[LFS16]'s, but it also drops the twist and curvature of the ring; step 5 gives back the part of
 them that no first-order input sees.  ``rule="extraction"`` keeps every component instead: A_i = F_i + C - sum_j c_j F_j
-(the first-ring face points moved so that the corner is still [19]'s limit point C); it
+(the first-ring face points moved so that the corner is still [LFS16]'s limit point C); it
 reproduces the B-spline at a forced valence-4 vertex with uniform intervals, and its tangent
-plane is [19]'s only approximately.  Both are offered; section 3.5's rule is the default.
+plane is [LFS16]'s only approximately.  Both are offered; section 3.5's rule is the default.
 """
 
 from __future__ import annotations
@@ -41,8 +41,8 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from .eigen_polyhedron import limit_point_weights, tangent_projector
-from .topology import Topology
+from patching.rules.eigen_polyhedron import limit_point_weights, tangent_projector
+from patching.topology.tables import Topology
 
 __all__ = ["RULES", "anchor_weights", "anchor_matrix", "onward_interval", "vertex_point_weights"]
 
@@ -138,7 +138,7 @@ def onward_interval(topo: Topology, h: np.ndarray) -> np.ndarray:
     ends sit at w = B_0 / (B_0 + d_i + B_1) and w' = B_1 / (B_1 + d_i + B_0) of the edge, so
     w + w' < 1 and they never cross.  The earlier reading a_i = d_i put them past each other
     on short edges between two EPs (w = 0.55 at valence 3 with intervals 1.2 against 2.1 and
-    3.5), which folded the catmark cube's patches at interval ratio 3 (issue 6 note)."""
+    3.5), which folded the catmark cube's patches at interval ratio 3."""
     back = topo.twin[h]
     ahead = topo.rotate(topo.rotate(back))
     behind = topo.rotate_back(topo.rotate_back(back))

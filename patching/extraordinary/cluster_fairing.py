@@ -1,6 +1,6 @@
-"""Joint G1 solve for clusters of extraordinary points joined by spokes (ours; issue 6 note).
+"""Joint G1 solve for clusters of extraordinary points joined by spokes (ours).
 
-Seed 002 (section 3.4) sets the G1 unknowns EP by EP and spoke by spoke: red (spoke points,
+[FSLYJ] (section 3.4) sets the G1 unknowns EP by EP and spoke by spoke: red (spoke points,
 face points, P^i[2,0]) nearest to the extraction under G_0, G_1 at one EP; black (P30) from the
 fifth difference; green (A[k,1], B[1,k], k = 2, 3) nearest to the extraction under G_2, G_3.
 Where two EPs share a spoke whose interval is short against its neighbours' while its
@@ -23,7 +23,7 @@ before this step (the degree-elevated extraction), mu = ``MU`` times the mean di
 energy's Hessian in u.  P00 (the anchors' vertex point, hence the limit point) and all other
 coefficients are held.  Spokes to a regular vertex take G_0..G_3 and the fifth difference (the
 black rule), spokes between two EPs G_0..G_5 written in the frame of the lower-numbered end
-(both frames give the same conditions).  Sector EPs (seed 002 section 4.2) as in the seed's
+(both frames give the same conditions).  Sector EPs ([FSLYJ] sec. 4.2) as in the seed's
 steps: a sharp spoke has no G1 condition and keeps the crease B-spline (its spoke points
 held), a dart's one sharp spoke is free but for the fifth difference, and a boundary fan's
 missing patch has no unknowns.  The energy is quadratic and the constraints linear in the
@@ -53,13 +53,13 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .anchor_fairing import thin_plate_matrices
-from .g1_constraints import fifth_difference, spoke_equations
-from .g1_patches import _key
+from patching.extraordinary.anchor_fairing import thin_plate_matrices
+from patching.extraordinary.g1_constraints import fifth_difference, spoke_equations
+from patching.extraordinary.g1_patches import cache_key
 
 if TYPE_CHECKING:
-    from .g1_patches import EPGroup, G1Assembly, RowMixer
-    from .topology import Topology
+    from patching.extraordinary.g1_patches import EPGroup, G1Assembly, RowMixer
+    from patching.topology.tables import Topology
 
 __all__ = ["ep_clusters", "ClusterFairing", "MU", "MAX_CLUSTER_EPS", "MAX_CLUSTER_FACES"]
 
@@ -187,7 +187,7 @@ class ClusterFairing:
                 if 0 <= far < v:
                     continue  # set once, from the lower-numbered end
                 slots = np.concatenate([r[i, :, 0], r[i, :, 1], before[i, 1, :]])
-                eq = spoke_equations(*_key(keys[i]))
+                eq = spoke_equations(*cache_key(keys[i]))
                 if far < 0:
                     fifth = np.concatenate([fifth_difference, np.zeros(12)])
                     eq = np.vstack([eq[:4], fifth])

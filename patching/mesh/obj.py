@@ -1,4 +1,4 @@
-"""OBJ control meshes with OpenSubdiv tags and the project's ``interval`` tag (DESIGN 1).
+"""OBJ control meshes with OpenSubdiv tags and the project's ``interval`` tag (docs/input.md).
 
 Reads ``v x y z``, ``f a b c ...`` (1-based, ``a/t/n`` forms, negative relative indices) and
 ``t NAME nint/nfloat/nstring ints... floats... strings...`` with 0-based vertex ids:
@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputFileError, KnotError, MeshError, TagError
-from .mesh import ControlMesh, NupatchWarning, from_arrays
+from patching.errors import InputFileError, KnotError, MeshError, TagError
+from patching.mesh.control_mesh import ControlMesh, NupatchWarning, from_arrays
 
-__all__ = ["read_obj", "parse_obj", "write_obj"]
+__all__ = ["read_obj", "parse_obj", "format_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
 _IGNORED = {"vt", "vn", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
@@ -200,12 +200,9 @@ def _values_for(tag: str, floats: list[float], count: int, loc: str) -> list[flo
     raise InputFileError(f"{tag} tag has {len(floats)} values for {count} items (give 1 or {count})", loc)
 
 
-def write_obj(mesh: ControlMesh, path: str | os.PathLike, comment: str = "") -> None:
-    """Write a control mesh with its tags so that ``read_obj`` reads it back.
-
-    Writes atomically: a temporary file beside ``path`` renamed into place.
-    """
-    path = Path(path)
+def format_obj(mesh: ControlMesh, comment: str = "") -> str:
+    """The OBJ text of a control mesh with its tags, so that ``parse_obj`` reads it back
+    (``export.write_obj`` writes it to a file atomically)."""
     lines = [f"# {line}" for line in comment.splitlines()]
     lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
     for f in range(mesh.n_faces):
@@ -219,6 +216,4 @@ def write_obj(mesh: ControlMesh, path: str | os.PathLike, comment: str = "") -> 
     for f in sorted(mesh.holes):
         lines.append(f"t hole 1/0/0 {f}")
     lines.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}")
-    from .atomic import atomic_write_text
-
-    atomic_write_text(path, "\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .mesh import ControlMesh, from_arrays
+from patching.mesh.control_mesh import ControlMesh, from_arrays
 
 __all__ = ["torus_grid", "open_grid", "polycube"]
 
@@ -56,7 +56,7 @@ def open_grid(
     """Open m x n vertex grid over [0, m-1] x [0, n-1], a gentle bump in z.
 
     u_intervals has m-1 entries (strip between columns a and a+1), v_intervals n-1.  Zero outer
-    strips give the clamped NURBS (DESIGN 2)."""
+    strips give the clamped NURBS (docs/knots.md)."""
     a, b = np.meshgrid(np.arange(m, dtype=float), np.arange(n, dtype=float), indexing="ij")
     z = height * np.sin(np.pi * a / (m - 1)) * np.sin(np.pi * b / (n - 1))
     vertices = np.stack([a, b, z], -1).reshape(-1, 3)

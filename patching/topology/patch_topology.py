@@ -14,9 +14,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .errors import UnsupportedError
-from .surface import PatchTopology
-from .topology import Topology
+from patching.errors import UnsupportedError
+from patching.surface import PatchTopology
+from patching.topology.tables import Topology
 
 __all__ = ["patch_topology"]
 

@@ -1,9 +1,9 @@
-"""A second placement of the auxiliary control points: fairing (seed 002, section 3.5 and
-Fig. 16c; issue 6 item 5).
+"""A second placement of the auxiliary control points: fairing ([FSLYJ] sec. 3.5 and
+Fig. 16c).
 
 Section 3.5 leaves the anchors free.  Fig. 16c improves the default placement "by minimizing
 the average of thin plate energy for irregular patches and the difference between the new
-auxiliary points with default ones"; the conclusion names the fairing energy of [32].  Used
+auxiliary points with default ones"; the conclusion names the fairing energy of [SSEL13].  Used
 here, per EP v with anchors A_v (the other EPs' anchors held at their defaults, so the operator
 stays local):
 

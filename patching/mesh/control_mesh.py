@@ -1,4 +1,4 @@
-"""The control mesh as arrays plus tags (DESIGN 1), and the checks that need no topology.
+"""The control mesh as arrays plus tags (docs/input.md), and the checks that need no topology.
 
 Faces are stored flat, as OpenSubdiv and USD do: ``face_vertices`` (sum of face sizes,) int64
 and ``face_offsets`` (f + 1,) int64, so face k is ``face_vertices[face_offsets[k]:face_offsets[k+1]]``.
@@ -14,11 +14,11 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import KnotError, MeshError, TagError
+from patching.errors import KnotError, MeshError, TagError
 
 __all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE"]
 
-#: Crease sharpness at or above which an edge is infinitely sharp (DESIGN 1, OpenSubdiv's 10).
+#: Crease sharpness at or above which an edge is infinitely sharp (docs/input.md, OpenSubdiv's 10).
 INFINITELY_SHARP = 10.0
 #: Largest coordinate magnitude taken: beyond it STL and glTF (32-bit floats, up to 3.4e38)
 #: would hold infinities, OpenCASCADE's meshing hangs (from 1e77) and volumes overflow.
@@ -36,7 +36,7 @@ class ControlMesh:
     vertices: (n, 3) float64.  face_vertices, face_offsets: flat faces, see module docstring.
     intervals: {(a, b): d}, knot interval d >= 0 of edge a-b (a < b); the whole strip gets it.
     creases: {(a, b): s}, sharpness s >= 0 (s >= 10 infinitely sharp).
-    corners: {v: s}.  holes: face ids.  interpolate_boundary: 0, 1 or 2 (DESIGN 1; default 1).
+    corners: {v: s}.  holes: face ids.  interpolate_boundary: 0, 1 or 2 (docs/input.md; default 1).
     name: product name for export.  locations: where each item came from, for error messages,
     keyed ("vertex", v), ("face", f), ("interval", (a, b)), ("crease", (a, b)), ("corner", v),
     ("hole", f); values such as "part.obj:12".
@@ -117,7 +117,7 @@ def from_arrays(
     name: str = "mesh",
     locations: Mapping[tuple, str] | None = None,
 ) -> ControlMesh:
-    """Build and check a ControlMesh from arrays (DESIGN 1, the Python API).
+    """Build and check a ControlMesh from arrays (docs/input.md, the Python API).
 
     vertices: (n, 3) floats.  faces: an (f, k) int array or a list of index lists (0-based).
     Raises MeshError, KnotError or TagError naming the offending item; warns (NupatchWarning)

@@ -1,4 +1,4 @@
-"""Sharp features of a control mesh as the patch construction sees them (seed 002 section 4.2).
+"""Sharp features of a control mesh as the patch construction sees them ([FSLYJ] sec. 4.2).
 
 Infinitely sharp edges (sharpness >= 10, and the open boundary when it is interpolated) cut the
 faces around a vertex into *sectors*: maximal fans of faces between two sharp edges.  Section
@@ -6,7 +6,7 @@ faces around a vertex into *sectors*: maximal fans of faces between two sharp ed
 (triple knots: nothing crosses it), the angles of a sector add up to pi where a crease runs on
 through the vertex, and no G1 constraint crosses a sharp spoke.  So every sector is, locally, a
 boundary fan of an open mesh cut along its sharp edges, and needs anchors (the EP path of
-seed 002 section 3) unless it is one of the fans the bicubic construction already reproduces:
+[FSLYJ] sec. 3) unless it is one of the fans the bicubic construction already reproduces:
 
 * one face: a corner (the patch keeps the control point), or a crease turning through the
   vertex (the patch corner is flat);
@@ -15,7 +15,7 @@ seed 002 section 3) unless it is one of the fans the bicubic construction alread
 A vertex is a *corner* when it carries a corner tag >= 10, when three or more sharp edges meet,
 or (interpolateboundary 1) when it is a boundary vertex with one face.  Two sharp edges and no
 tag make a crease vertex, whatever the angle between them (OpenSubdiv's rule).  One sharp edge
-at an interior vertex is a dart: the crease fades out there (seed 000 section 4's dart vertex
+at an interior vertex is a dart: the crease fades out there ([TLC] sec. 4's dart vertex
 takes the smooth rule), so the vertex keeps the smooth vertex point and its ring is one sector
 of 2 pi in which the sharp spoke only loses its G1 constraint (its curve is not pinned to the
 crease polygon, whose B-spline would end at the control point).  An interior vertex of
@@ -23,7 +23,7 @@ valence 2 gets the EP path too, its two patches meeting at flat (pi) corners.
 
 Sector angles (section 4.2 gives only the crease rule):
 * crease vertex: pi per sector (the paper), the open boundary included;
-* corner: the sector's topological angle, pi / 2 per quad as seed 000's corner rules read in
+* corner: the sector's topological angle, pi / 2 per quad as [TLC]'s corner rules read in
   ``subdivision`` (a three-quad concave sector spans 3 pi / 2), but never a multiple of pi, so
   that the two crease legs fix the sector's tangent plane (``g1_patches.corner_sector_angle``);
 * corner tag on a vertex without sharp edges, and a dart: one sector of 2 pi (2 pi / n per
@@ -40,9 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import UnsupportedError
-from .mesh import INFINITELY_SHARP
-from .topology import Topology
+from patching.errors import UnsupportedError
+from patching.mesh.control_mesh import INFINITELY_SHARP
+from patching.topology.tables import Topology
 
 __all__ = ["Features", "features", "sharp_edges", "corner_vertices", "faces_without_surface", "refuse_singular_rings"]
 
@@ -52,7 +52,7 @@ CORNER_SECTOR = np.pi / 2
 
 def sharp_edges(topo: Topology) -> np.ndarray:
     """(e,) bool: infinitely sharp edges, and the open boundary when it is interpolated
-    (interpolateboundary 1 or 2, DESIGN 1: boundary edges are infinitely sharp creases)."""
+    (interpolateboundary 1 or 2, docs/input.md: boundary edges are infinitely sharp creases)."""
     sharp = topo.edge_sharpness >= INFINITELY_SHARP
     if topo.mesh.interpolate_boundary in (1, 2):
         sharp = sharp | topo.edge_is_boundary
@@ -77,7 +77,7 @@ def corner_vertices(topo: Topology, sharp: np.ndarray | None = None) -> np.ndarr
 def faces_without_surface(topo: Topology) -> np.ndarray:
     """(f,) bool: faces that give no patch whatever their intervals: holes (``t hole``) and,
     under interpolateboundary 0, every face with a vertex on the open boundary (OpenSubdiv's
-    "none": the limit surface stops one ring inside; DESIGN 1).  Their control points still
+    "none": the limit surface stops one ring inside; docs/input.md).  Their control points still
     shape the faces around them, whose rules do not change."""
     out = np.zeros(topo.mesh.n_faces, dtype=bool)
     out[list(topo.mesh.holes)] = True

@@ -1,18 +1,18 @@
-"""Subdivision masks only: weights for face, edge and vertex points, no mesh (STYLE 1, like
+"""Subdivision masks only: weights for face, edge and vertex points, no mesh (like
 OpenSubdiv's ``sdc/``).  ``subdivision`` gathers the knot intervals and tags from the topology
 and calls these, vectorised over arrays of configurations.
 
 Curve rules (the building block of every regular rule): a cubic B-spline with control points
 ``... P_{i-1}, P_i, P_{i+1} ...``; the edge ``P_j P_{j+1}`` carries the knot interval ``d_j``
-(DESIGN 2).  Inserting a knot at the middle of every interval (each interval split into two
-halves) gives, [SZSS98] and seed 000 eqs. (11)-(13):
+(docs/knots.md).  Inserting a knot at the middle of every interval (each interval split into two
+halves) gives, [SZSS98] and [TLC] eqs. (11)-(13):
 
     edge point on P_i P_{i+1}:
         E_i = ((d_i + 2 d_{i+1}) P_i + (d_i + 2 d_{i-1}) P_{i+1}) / (2 (d_{i-1} + d_i + d_{i+1}))
     vertex point at P_i:
         V_i = (d_i E_{i-1} + (d_{i-1} + d_i) P_i + d_{i-1} E_i) / (2 (d_{i-1} + d_i))
 
-Seed 000 writes both with the intervals beyond the two neighbours equal to the spoke's own
+[TLC] writes both with the intervals beyond the two neighbours equal to the spoke's own
 (its eqs. 12-13 are the edge rule with ``d_{i+1} = d_i``); written here in general, and checked
 (tests) against OpenCASCADE's knot insertion on torus grids.  Uniform intervals give the
 classic ``(1/2, 1/2)`` and ``(1/8, 3/4, 1/8)``.  Every mask is invariant under scaling all
@@ -78,7 +78,7 @@ def curve_vertex_weights(d_mm, d_m, d_p, d_pp):
 
 def blz_gamma(theta):
     """Biermann-Levin-Zorin's edge weight next to a tagged vertex: ``3/8 - cos(theta)/4``
-    (seed 000 section 2).  The tagged end gets ``3/4 - gamma``, the other end ``gamma``, the
+    ([TLC] sec. 2).  The tagged end gets ``3/4 - gamma``, the other end ``gamma``, the
     four far vertices ``1/16`` each; ``theta = pi/2`` gives the standard ``3/8``."""
     return 0.375 - 0.25 * np.cos(np.asarray(theta, dtype=np.float64))
 
@@ -116,7 +116,7 @@ def curve_derivative_weights(a, b):
 
 
 # ------------------------------------------------------------------------------------------
-# Seed 000 section 4: generalised eigen-polyhedra at tagged vertices (non-uniform intervals)
+# [TLC] sec. 4: generalised eigen-polyhedra at tagged vertices (non-uniform intervals)
 
 KINDS = {DART: "dart", CREASE: "crease", CORNER: "corner"}
 
@@ -180,7 +180,7 @@ def _frames(kind: int, n: int, sharp: tuple, boundary: bool):
 
 
 def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary: bool) -> TaggedRules:
-    """Local rules around g tagged vertices of one kind and shape from seed 000's generalised
+    """Local rules around g tagged vertices of one kind and shape from [TLC]'s generalised
     eigen-polyhedron, all at once.
 
     kind: DART, CREASE or CORNER.  intervals: (g, n) spoke intervals d_0..d_{n-1} of each
@@ -193,7 +193,7 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     and the crease edges are the curve rules (``subdivision``), not here.  Raises
     ``eigen_polyhedron.BilinearError`` whose ``index[0]`` is the failing vertex.
 
-    Construction (seed 000 sections 4.1-4.3): ``V^ = 0``; ``E^_i = l_i (cos phi_i, sin phi_i)``
+    Construction ([TLC] secs. 4.1-4.3): ``V^ = 0``; ``E^_i = l_i (cos phi_i, sin phi_i)``
     with l_i of eq. (5) (``eigen_polyhedron.spoke_lengths(d, "fourier")``; ``l = d`` for two
     spokes) and angles per sector (:func:`_frames`): dart ``2 pi / n``; crease ``pi / n_1`` and
     ``pi / n_2``; corner ``alpha_q / n_q`` with the sector's topological angle (``pi/2`` a
@@ -204,11 +204,11 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     the bilinear form on ``(P_{i,k} + V or E_i)/2`` solved for ``E^1 = E^0/2 + T``: both by
     ``eigen_polyhedron.bilinear_rule``, the closed form, every face (edge) of every vertex in
     one vectorised solve.  Reconstruction: eq. (7)'s ``f_i`` is printed as a garbled product;
-    ``d_{i-1} d_{i+2}`` as in seed 002 (and ``eigen_polyhedron``).  Check (tests): equal
+    ``d_{i-1} d_{i+2}`` as in [FSLYJ] (and ``eigen_polyhedron``).  Check (tests): equal
     intervals give the BLZ rules (centroid faces, ``gamma = 3/8 - cos(theta)/4`` edges,
     Catmull-Clark darts).
 
-    Zero spokes (a multiple knot, DESIGN 2) are taken, and the rules there are the limit of
+    Zero spokes (a multiple knot, docs/knots.md) are taken, and the rules there are the limit of
     the rules with the zero intervals replaced by eps -> 0.  Why the limit exists and equals
     the rule at 0: every ingredient is a continuous function of the intervals wherever it is
     defined at them, so no separate formula is needed at 0.  The lengths of eq. (5) are
@@ -228,7 +228,7 @@ def tagged_rules_batch(kind: int, intervals: np.ndarray, sharp: tuple, boundary:
     zero strip stop coinciding and the patches beside the strip (which gives none) do not
     close up (``subdivision._refuse_tagged_on_zero``).
     """
-    from . import eigen_polyhedron as eig
+    from patching.rules import eigen_polyhedron as eig
 
     d = np.asarray(intervals, dtype=np.float64)
     g, n = d.shape

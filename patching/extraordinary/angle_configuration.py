@@ -1,12 +1,12 @@
 """Angle configuration of one extraordinary point: angles, lengths, connecting functions.
 
-Seed 002, section 3.3 ("Constraints for G1 continuity"), with the sharp-feature rule of
+[FSLYJ] sec. 3.3 ("Constraints for G1 continuity"), with the sharp-feature rule of
 section 4.2.  For an EP of valence n with spoke-edge knot intervals d_0..d_{n-1} this module
 chooses the angles theta_i and spoke lengths l_i of a planar "characteristic" fan and from them
 the constants b_i of the connecting functions used by the G1 constraints of section 3.4
 (eqs. 8 and 9).  It depends on n, the intervals and the sharp tags only, never on positions.
 
-Numbering (indices mod n; seed 002 Figs. 9 and 10)::
+Numbering (indices mod n; [FSLYJ] Figs. 9 and 10)::
 
                       spoke i+1
                          \\
@@ -41,13 +41,13 @@ Crossing (*) with v_i gives the paper's eq. (5) (the unnumbered relation before 
 
 and crossing with v_{i-1} gives b_i = -l_{i+1} d_{i-1} d_i sin(theta_{i-1} + theta_i) /
 (l_i sin(theta_{i-1})), exactly as printed; uniform angles give b_i = -2 d_{i-1} d_{i+1}
-cos(2 pi / n), the baseline of reference [32].  This confirms the convention above: with
+cos(2 pi / n), the baseline of reference [SSEL13].  This confirms the convention above: with
 theta_i measured from spoke i-1 instead, eq. (5) would carry other indices.
 
 SIGN WARNING for whoever wires b into section 3.4: the printed eq. (8) (and Lemma 1, eq. 4,
 "gamma A_t + alpha B_t - beta A_s = 0") group as alpha v_{i+1} + gamma v_{i-1} = b v_i, i.e.
 they use the opposite sign: uniform valence 5 needs v_{i+1} + v_{i-1} = +2 cos(72 deg) v_i,
-while the printed b formula and [32] give -2 d d cos(2 pi / n).  The paper is inconsistent
+while the printed b formula and [SSEL13] give -2 d d cos(2 pi / n).  The paper is inconsistent
 between its b formula and its eqs. (4), (8), (9); this module returns b as the b formula is
 printed (the brief asked for that), so substitute -b for b in eqs. (8) and (9) as printed, or
 equivalently use (*).  Valence 4 cannot tell the two apart (b = 0 there).
@@ -64,7 +64,7 @@ Reconstructions of garbled formulas (each checked in tests/test_angle_configurat
   theta_{i+k}))_+ with damaged indices.  Read with j the absolute spoke index i+1..i+n-1, the
   inner sum is the fan angle from spoke i to spoke j, so l_i = sum_j d_j (cos(phi_j - phi_i))_+
   (the j = i term is d_i).  This is the d_i^+ part of the eigen-polyhedron length of
-  Li-Finnigan-Sederberg 2016 (seed 000, eq. 5) with the actual angles in place of 2 pi (i-j)/n.
+  Li-Finnigan-Sederberg 2016 ([TLC], eq. 5) with the actual angles in place of 2 pi (i-j)/n.
   Tests: uniform intervals give equal lengths; valence 4 gives l_i proportional to d_i (NURBS).
 * b_i is not garbled but see the sign warning above.
 
@@ -77,7 +77,7 @@ Choices the text leaves open (documented here, tested):
   n: the even and the odd spokes form separate chains); the paper leaves l_0 (and l_1) free.
   Those factors are fitted to l-hat by linear least squares.  For even n, b_i depends on the
   ratio of the two factors (l_{i+1} / l_i crosses chains).  The "uniform" mode uses one common
-  factor, l_i proportional to d_i, which is what makes b equal [32]'s formula.
+  factor, l_i proportional to d_i, which is what makes b equal [SSEL13]'s formula.
 * Labelling.  Every EP is solved in a canonical labelling (the lexicographically smallest
   rotation or reflection of its intervals and sharp set) and relabelled back, so results are
   exactly equivariant under rotation and reflection, and rotated or mirrored copies of an EP
@@ -111,7 +111,7 @@ Choices the text leaves open (documented here, tested):
   both be pi").  r sharp spokes split the n patches into r sectors; each sector's angles sum to
   2 pi / max(r, 1): r = 2 is the paper's rule (pi and pi), r = 1 (a dart) keeps 2 pi for the
   single sector so its angles are those of the smooth EP, r >= 3 (a corner) shares 2 pi equally
-  (the geometric sector angles of seed 000's corner rule are not available to an operator that
+  (the geometric sector angles of [TLC]'s corner rule are not available to an operator that
   depends on topology and knots only).  Heuristic angles are normalised per sector.  There is
   no G1 constraint across a sharp spoke, so eq. (5) is not imposed there and b is NaN there;
   Lemma 2's condition is imposed only when a closed chain survives (n even and all sharp spokes
@@ -129,8 +129,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import least_squares
 
-try:  # patching/errors.py defines the project's exception family (STYLE 6).
-    from .errors import KnotError, TagError
+try:  # patching/errors.py defines the project's exception family.
+    from patching.errors import KnotError, TagError
 except ImportError:  # pragma: no cover - only while errors.py did not exist yet
     KnotError = TagError = ValueError  # type: ignore[misc,assignment]
 
@@ -146,7 +146,7 @@ _EPS = 4 * np.finfo(float).eps  # least_squares("lm") tolerances: near the small
 
 @dataclass(frozen=True)
 class AngleConfiguration:
-    """Angles, lengths and connecting-function constants of one EP (seed 002, section 3.3).
+    """Angles, lengths and connecting-function constants of one EP ([FSLYJ] sec. 3.3).
 
     All arrays are (n,) float64, read-only (results are cached and shared), indexed as in the
     module docstring: theta[i] is the angle of patch i (from spoke i to spoke i+1), lengths[i]
@@ -178,14 +178,14 @@ def angle_configuration(
     max_iterations: int = 200,
     sharp_spokes: Sequence[int] = (),
 ) -> AngleConfiguration:
-    """Angle configuration of an EP with spoke intervals ``intervals`` (seed 002, section 3.3).
+    """Angle configuration of an EP with spoke intervals ``intervals`` ([FSLYJ] sec. 3.3).
 
     intervals: (n,) knot intervals d_i of the spokes, counter-clockwise, n >= 3, d_i >= 0, at
     least one face (d_i d_{i+1} > 0) of nonzero area.
     mode: "optimized" (default angles, then the alternating least-squares of section 3.3 with
     weight ``omega`` and at most ``max_iterations`` outer iterations, Remark 2), "default" (the
     heuristic angles, perturbed for Lemma 2 when n is even) or "uniform" (theta = 2 pi / n, the
-    baseline of [32]: b_i = -2 d_{i-1} d_{i+1} cos(2 pi / n)).
+    baseline of [SSEL13]: b_i = -2 d_{i-1} d_{i+1} cos(2 pi / n)).
     sharp_spokes: indices of spokes that are sharp (C0) edges (section 4.2); see the module
     docstring for one, two and more sharp spokes.
 
@@ -348,7 +348,7 @@ def _structure(n: int, sharp: tuple[int, ...]) -> _Structure:
 
 
 # --------------------------------------------------------------------------------------------
-# The heuristic (seed 002, section 3.3)
+# The heuristic ([FSLYJ] sec. 3.3)
 
 
 def _heuristic_weights(d: np.ndarray) -> np.ndarray:
@@ -650,7 +650,7 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
     l_hat = _default_lengths(dbar, theta_hat)
     iterations, converged = 0, True
     if mode == "uniform" or (len(sharp) <= 1 and np.all(d == d[0])):
-        # [32]; and for equal intervals every mode: the heuristic gives equal angles, equal
+        # [SSEL13]; and for equal intervals every mode: the heuristic gives equal angles, equal
         # l-hat, and E = 0 there, so 2 pi / n exactly (within each sector if sharp).
         theta = np.empty(n)
         for sector, total in zip(st.sectors, st.sums):
@@ -676,7 +676,7 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
             theta = _symmetrised(theta, symmetries, st)
     m = _relative_lengths(theta, st)
     if mode == "uniform":
-        # [32]: one factor for every chain, l_i proportional to d_i (m = 1 without sharp spokes)
+        # [SSEL13]: one factor for every chain, l_i proportional to d_i (m = 1 without sharp spokes)
         q = dbar * m
         s = np.full(n, np.dot(q, l_hat) / np.dot(q, q))
     else:

@@ -1,12 +1,12 @@
 """Local eigen-polyhedron rules of non-uniform Catmull-Clark subdivision around one vertex.
 
-Weights only: no mesh, no positions (STYLE 1, OpenSubdiv's ``sdc/``).  The rules are those of
-Li, Finnigan and Sederberg 2016 ("G1 non-uniform Catmull-Clark surfaces", seed 002's [19],
-seed 000's [LFS16]) as restated in seed 002's Appendix (eqs. 11, 12 and the edge rule) and
-explained in seed 000 section 3 (the technique) and section 4.3 (the vertex rule written
-cleanly).  Seed 001 changes only the angles of the eigen-polyhedron (``angles="modified"``).
+Weights only: no mesh, no positions (OpenSubdiv's ``sdc/``).  The rules are those of
+Li, Finnigan and Sederberg 2016 ("G1 non-uniform Catmull-Clark surfaces", [FSLYJ]'s [LFS16],
+[TLC]'s [LFS16]) as restated in [FSLYJ]'s Appendix (eqs. 11, 12 and the edge rule) and
+explained in [TLC] sec. 3 (the technique) and section 4.3 (the vertex rule written
+cleanly).  [ZTL] changes only the angles of the eigen-polyhedron (``angles="modified"``).
 
-Point ordering, written once (STYLE 9)
+Point ordering, written once
 --------------------------------------
 A vertex ``V`` of valence ``n`` with spoke edges ``V-E_i`` (knot interval ``d_i``) and faces
 ``i = (V, E_i, F_i, E_{i+1})`` counter-clockwise.  The local points are ordered
@@ -33,41 +33,41 @@ interval written on every edge; any n continues counter-clockwise in the same wa
 
 In face ``i`` the edge ``E_i-F_i`` is opposite spoke ``i+1`` and carries ``d_{i+1}``; the edge
 ``E_{i+1}-F_i`` is opposite spoke ``i`` and carries ``d_i`` (opposite quad edges share an
-interval, DESIGN 2).  So the 1-ring carries only the spoke intervals.
+interval, docs/knots.md).  So the 1-ring carries only the spoke intervals.
 
 Is the 1-ring closed under the rule?  Yes: every rule below reads ``V``, ``E_j``, ``F_j`` and
 the spoke intervals ``d_j`` only, so one step is a (2n+1) x (2n+1) matrix.  The rule *assumes*
-that the edge continuing spoke ``i`` beyond ``E_i`` (seed 002's ``a_i``, Fig. 11) also carries
-``d_i`` (seed 000 Fig. 8: "d-bar_i = d-tilde_i = d_i").  After one refinement step this always
+that the edge continuing spoke ``i`` beyond ``E_i`` ([FSLYJ]'s ``a_i``, Fig. 11) also carries
+``d_i`` ([TLC] Fig. 8: "d-bar_i = d-tilde_i = d_i").  After one refinement step this always
 holds (both halves of a split spoke carry ``d_i / 2``), which is what makes the matrix
 stationary; on a level-0 mesh with ``a_i != d_i`` a valence-4 vertex is *not* exact NURBS knot
-insertion under these rules.  The ``a_i`` enter only seed 002's Bézier-extraction face points
+insertion under these rules.  The ``a_i`` enter only [FSLYJ]'s Bézier-extraction face points
 (section 3.5 step 1), not this module.
 
-The construction (seed 000 section 3; seed 002 Appendix)
+The construction ([TLC] sec. 3; [FSLYJ] Appendix)
 --------------------------------------------------------
 1. Eigen-polyhedron in R^2: ``V^ = (0, 0)``, ``E^_i = l_i (cos phi_i, sin phi_i)``,
    ``F^_i = gamma (E^_i + E^_{i+1})`` with ``phi_i = 2 pi i / n`` (standard) or the partial sums
-   of seed 001's angles (modified), ``c = cos(2 pi / n)``,
+   of [ZTL]'s angles (modified), ``c = cos(2 pi / n)``,
    ``gamma = 4 / (c + 1 + sqrt((c + 9)(c + 1)))`` and ``lambda = (1 + gamma) / (4 gamma)``
-   (Catmull-Clark's subdominant eigenvalue, the same for both angle choices, seed 001 eq. 14).
+   (Catmull-Clark's subdominant eigenvalue, the same for both angle choices, [ZTL] eq. 14).
 2. The vertex rule (fixed, eq. 11) gives ``T = V^1`` on the eigen-polyhedron.
 3. The face and edge rules are bilinear in two unknown coefficients each; they are solved so
    that the refined eigen-polyhedron is ``lambda P^0 + 1 T`` (a scale and a translation).  Then
    the two columns of ``P^0 - 1 T / (1 - lambda)`` are right eigenvectors of the matrix with
-   eigenvalue ``lambda``: the double subdominant eigenvalue that G1 needs (seed 000 section 3).
+   eigenvalue ``lambda``: the double subdominant eigenvalue that G1 needs ([TLC] sec. 3).
 
 Reconstructions (the seed texts are PDF extractions; see each function for details)
 -----------------------------------------------------------------------------------
-* The spoke lengths ``l_i``: seed 002 prints ``l_i = (2 d_i + d_i^-) / 3`` with a garbled
-  rational ``d_i^-``; seeds 000/001 give [LFS16]'s Fourier-type formula.  Both are implemented
-  (``lengths=``); the seed 000 form is the default because the reconstructed appendix form
+* The spoke lengths ``l_i``: [FSLYJ] prints ``l_i = (2 d_i + d_i^-) / 3`` with a garbled
+  rational ``d_i^-``; [TLC] and [ZTL] give [LFS16]'s Fourier-type formula.  Both are implemented
+  (``lengths=``); the [TLC] form is the default because the reconstructed appendix form
   loses the double subdominant eigenvalue at ratios >= 10.  See :func:`spoke_lengths`.
-* ``M_i`` and ``F_i`` in eq. (11) (``M_i`` undefined in seed 002): they are seed 000's ``H_i``
+* ``M_i`` and ``F_i`` in eq. (11) (``M_i`` undefined in [FSLYJ]): they are [TLC]'s ``H_i``
   and ``G_i`` (section 4.3.1, eqs. 6-7): see :func:`vertex_rule_weights`.
-* The bilinear solves (seed 000 eqs. 20-21, seed 001 after eq. 17, both partly garbled): solved
+* The bilinear solves ([TLC] eqs. 20-21, [ZTL] after eq. 17, both partly garbled): solved
   here in closed form from first principles, see :func:`bilinear_inverse`.
-* Seed 001's angle rule: its case "(2) n != 3" is "(2) n = 3", see :func:`eigen_angles`.
+* [ZTL]'s angle rule: its case "(2) n != 3" is "(2) n = 3", see :func:`eigen_angles`.
 """
 
 from __future__ import annotations
@@ -138,7 +138,7 @@ def characteristic_scale(valence: int) -> CharacteristicScale:
 
     ``c = cos(2 pi / n)``, ``gamma = 4 / (c + 1 + sqrt((c + 9)(c + 1)))``,
     ``lambda = (1 + gamma) / (4 gamma) = (5 + c + sqrt((c + 9)(c + 1))) / 16``
-    (seed 002 Appendix; seed 000 eq. 1 and section 4.1 step 2).  Valence 4 gives
+    ([FSLYJ] Appendix; [TLC] eq. 1 and section 4.1 step 2).  Valence 4 gives
     ``gamma = 1, lambda = 1/2`` (bicubic B-spline midpoint refinement).
     """
     c = math.cos(2.0 * math.pi / valence)
@@ -199,9 +199,9 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def eigen_angles(intervals, angles: str = "standard") -> np.ndarray:
     """Angles ``theta_i`` between ``E^_i`` and ``E^_{i+1}`` of the eigen-polyhedron, (n,) float64.
 
-    ``"standard"``: ``2 pi / n`` each ([LFS16], seed 002 Appendix).
+    ``"standard"``: ``2 pi / n`` each ([LFS16], [FSLYJ] Appendix).
 
-    ``"modified"``: seed 001, "Modified eigenpolyhedron", eq. (10) and the case analysis after
+    ``"modified"``: [ZTL], "Modified eigenpolyhedron", eq. (10) and the case analysis after
     it.  With ``k_i = n d_i d_{i+1} / sum_j d_j d_{j+1}``::
 
         theta_i^pre = pi/2 - (2 - 8/n) arctan(k_i)                    if k_i < 1
@@ -259,7 +259,7 @@ def spoke_lengths(intervals, lengths: str = "fourier", zero_spokes: bool = False
     """Lengths ``l_i = |E^_i - V^|`` of the eigen-polyhedron's spokes, (n,) float64 (or (g, n)
     for intervals (g, n): g vertices at once).
 
-    ``"fourier"`` (default; seed 000 eq. 5 and seed 001 eq. 11, both giving it as the length
+    ``"fourier"`` (default; [TLC] eq. 5 and [ZTL] eq. 11, both giving it as the length
     formula of [LFS16]): ``l_i = (d_i + d_i^+ + d_i^-) / 3`` with::
 
         d_i^+ =  sum_{|i-j| <= n/4} d_j cos(2 pi (i-j) / n)
@@ -268,10 +268,10 @@ def spoke_lengths(intervals, lengths: str = "fourier", zero_spokes: bool = False
     ``|i-j|`` the cyclic distance (the sums run over ``j = i .. i+n-1``).  Reconstruction: seed
     001 prints ``d_i^-`` without the minus sign; with it ``l_i = (d_i + sum_j d_j
     |cos(2 pi (i-j)/n)|) / 3 > 0``, and valence 4 gives ``(2 d_i + d_{i+2}) / 3``, the Greville
-    distance of the bicubic B-spline (seed 001 eq. 8); without it valence 4 would give
+    distance of the bicubic B-spline ([ZTL] eq. 8); without it valence 4 would give
     ``(2 d_i - d_{i+2}) / 3``.
 
-    ``"appendix"`` (seed 002 Appendix as printed, reconstructed): ``l_i = (2 d_i + d_i^-) / 3``::
+    ``"appendix"`` ([FSLYJ] Appendix as printed, reconstructed): ``l_i = (2 d_i + d_i^-) / 3``::
 
         d_i^- = (d_{i-2} d_{i+1} + d_{i+2} d_{i-1}) / (d_{i-1} + d_{i+1})
 
@@ -284,7 +284,7 @@ def spoke_lengths(intervals, lengths: str = "fourier", zero_spokes: bool = False
     few percent of random configurations get a fourth eigenvalue >= lambda, while
     ``"fourier"`` passed every configuration tried (n = 3..16, ratios up to 1e4;
     ``benchmarks/eigen.py``).  The same holds for the other readings tried (the straight
-    weights ``d_{i-2} d_{i-1} + d_{i+2} d_{i+1}``, and ``(2 d_i + d_i^-)/3`` with seed 000's
+    weights ``d_{i-2} d_{i-1} + d_{i+2} d_{i+1}``, and ``(2 d_i + d_i^-)/3`` with [TLC]'s
     ``d_i^-``).  So the printed appendix form is most likely a damaged or simplified copy and
     the Fourier form is [LFS16]'s; "appendix" is kept only to document that finding.
 
@@ -314,14 +314,14 @@ def eigen_polyhedron(intervals, angles: str = "standard", lengths: str = "fourie
 
     ``V^ = (0, 0)``, ``E^_i = l_i (cos phi_i, sin phi_i)`` with ``phi_0 = 0``,
     ``phi_i = theta_0 + ... + theta_{i-1}`` (:func:`eigen_angles`; ``2 pi i / n`` for the
-    standard angles), ``F^_i = gamma (E^_i + E^_{i+1})`` (seed 002 Appendix; seed 001 eqs. 12-13).
+    standard angles), ``F^_i = gamma (E^_i + E^_{i+1})`` ([FSLYJ] Appendix; [ZTL] eqs. 12-13).
     Intervals (g, n) give (g, 2n+1, 2): g vertices at once.
     """
     d = _as_intervals(intervals, batch=True)
     n = d.shape[-1]
     if angles == "standard":
         theta = eigen_angles(np.ones(n))
-    else:  # seed 001's case analysis, one vertex at a time
+    else:  # [ZTL]'s case analysis, one vertex at a time
         theta = np.array([eigen_angles(row, angles) for row in d.reshape(-1, n)]).reshape(d.shape)
     phi = np.concatenate([np.zeros(theta.shape[:-1] + (1,)), np.cumsum(theta, axis=-1)[..., :-1]], axis=-1)
     ell = spoke_lengths(d, lengths)
@@ -335,7 +335,7 @@ def eigen_polyhedron(intervals, angles: str = "standard", lengths: str = "fourie
 
 
 def vertex_rule_weights(intervals) -> np.ndarray:
-    """Weights of the new vertex point on [V, E_0.., F_0..], (2n+1,) float64 (seed 002 eq. 11);
+    """Weights of the new vertex point on [V, E_0.., F_0..], (2n+1,) float64 ([FSLYJ] eq. 11);
     (g, 2n+1) for intervals (g, n).
 
     ``V' = (n-3)/n V + 3/n sum_i (m_i H_i + f_i G_i) / sum_i (m_i + f_i)`` with
@@ -345,16 +345,16 @@ def vertex_rule_weights(intervals) -> np.ndarray:
         H_i = (1 - g_i) V + g_i E_i
         G_i = (1-g_i)(1-g_{i+1}) V + g_i (1-g_{i+1}) E_i + (1-g_i) g_{i+1} E_{i+1} + g_i g_{i+1} F_i
 
-    Reconstruction: seed 002 writes ``m_i M_i + f_i F-bar_i`` and never defines ``M_i``; seed 000
+    Reconstruction: [FSLYJ] writes ``m_i M_i + f_i F-bar_i`` and never defines ``M_i``; [TLC]
     section 4.3.1 (eqs. 6-7) writes the same rule of [LFS16] as ``m_i H_i + f_i G_i``, and seed
     001 eq. (15) repeats it.  So ``M_i = H_i`` (the point on spoke ``i`` where the cubic
     B-spline puts its new edge point when the next interval along the spoke equals ``d_i``) and
     the face term is ``G_i``, a fixed bilinear point of face ``i``, not the eigen-solved new face
     point (with the latter the rule would also be well defined, but it would be implicit; every
-    seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in seed 001
-    (``E_{i+1}`` twice); seed 000 eq. (7) has the form above.  ``f_i``: seed 002 gives ``d_{i-1} d_{i+2}`` (the
-    same weights as its eq. 3); seeds 000/001 print a garbled product over ``j != i, i+1``, which
-    equals ``d_{i-1} d_{i+2}`` for valence 4.  The seed 002 form is used; the product form was
+    seed that writes the rule out uses ``G_i``).  ``G_i`` is printed garbled in [ZTL]
+    (``E_{i+1}`` twice); [TLC] eq. (7) has the form above.  ``f_i``: [FSLYJ] gives ``d_{i-1} d_{i+2}`` (the
+    same weights as its eq. 3); [TLC] and [ZTL] print a garbled product over ``j != i, i+1``, which
+    equals ``d_{i-1} d_{i+2}`` for valence 4.  The [FSLYJ] form is used; the product form was
     tried too and behaves the same in the eigenvalue sweep (neither fixes the failures at
     extreme ratios, see :func:`subdivision_eigenvalues`).
     Checks (tests): uniform intervals give Catmull-Clark's ``(n-2)/n V + (sum E + sum F)/n^2``;
@@ -373,7 +373,7 @@ def vertex_rule_weights(intervals) -> np.ndarray:
 
 def spoke_terms(intervals, zero_spokes: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Per spoke i, the weights of ``m_i H_i + f_i G_i`` on [V, E_0.., F_0..], (n, 2n+1), and
-    ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which seed 000's dart
+    ``m_i + f_i``, (n,): the terms of :func:`vertex_rule_weights`' sum, which [TLC]'s dart
     rule (``subdivision_rules``) splits between the two sides of the crease.  Intervals (g, n)
     give (g, n, 2n+1) and (g, n): g vertices at once (n >= 2, as :func:`vertex_rule_weights`)."""
     d = _as_intervals(intervals, batch=True, min_valence=2, zero_spokes=zero_spokes)
@@ -421,7 +421,7 @@ def bilinear_roots(p00, p10, p01, p11, x) -> tuple[np.ndarray, np.ndarray]:
     Writing the map as ``p00 + s b + t c + s t e`` and ``r = x - p00``, ``r - t c = s (b + t e)``,
     so ``cross(r - t c, b + t e) = 0``: the quadratic
     ``-cross(c, e) t^2 + (cross(r, e) - cross(c, b)) t + cross(r, b) = 0`` (the closed form that
-    seed 000 eqs. 20-21 and seed 001 write with signed areas, after Floater 2015; their printed
+    [TLC] eqs. 20-21 and [ZTL] write with signed areas, after Floater 2015; their printed
     versions are partly garbled, so it is derived here afresh).  The roots are taken in the
     cancellation-free form, ``s`` from the larger component of ``b + t e``, and each pair is
     polished by two Newton steps on the 2x2 system.  A root whose iso-line ``b + t e``
@@ -505,8 +505,8 @@ def bilinear_inverse(p00, p10, p01, p11, x, what: str = "rule", labels=None) -> 
 def bilinear_rule(corners: np.ndarray, polyhedron: np.ndarray, target: np.ndarray,
                   what: str = "rule", labels=None) -> tuple[np.ndarray, np.ndarray]:
     """Rows of bilinear rules ``(1-s)(1-t) q_0 + s (1-t) q_1 + (1-s) t q_2 + s t q_3`` whose
-    (s, t) put the refined eigen-polyhedron point at ``target`` (seed 000 eqs. 18-21 for face
-    points, 23-28 for edge points; seed 002 eq. 12 and the Appendix's edge rule).
+    (s, t) put the refined eigen-polyhedron point at ``target`` ([TLC] eqs. 18-21 for face
+    points, 23-28 for edge points; [FSLYJ] eq. 12 and the Appendix's edge rule).
 
     corners: (..., 4, size), the q's as weights on the local points; polyhedron: (..., size, 2),
     the eigen-polyhedron (or a frame of it) of each rule; target: (..., 2); leading axes
@@ -546,8 +546,8 @@ def face_corners(size: int, e0: np.ndarray, e1: np.ndarray, f: np.ndarray) -> np
 def edge_corners(size: int, e: np.ndarray, e_prev: np.ndarray, e_next: np.ndarray,
                  f_prev: np.ndarray, f_next: np.ndarray, a_prev: np.ndarray,
                  a_next: np.ndarray) -> np.ndarray:
-    """Corners of the edge rules of spokes ``E_i`` as (..., k, 4, size) weights (seed 002
-    Appendix, seed 000 eqs. 23-28): ``q_1 = (P_{i,1} + V)/2``, ``q_2 = (P_{i,2} + V)/2``,
+    """Corners of the edge rules of spokes ``E_i`` as (..., k, 4, size) weights ([FSLYJ]
+    Appendix, [TLC] eqs. 23-28): ``q_1 = (P_{i,1} + V)/2``, ``q_2 = (P_{i,2} + V)/2``,
     ``q_3 = (P_{i,3} + E_i)/2``, ``q_4 = (P_{i,4} + E_i)/2`` with the solved face coefficients
     of the two faces beside the spoke: ``P_{i,1} = (1-a) V + a E_{i-1}``, ``P_{i,3} = (1-a) E_i
     + a F_{i-1}`` (``a = a_prev``, face i-1's weight towards E_{i-1}), ``P_{i,2} = (1-a') V + a'
@@ -571,7 +571,7 @@ class RuleCoefficients(NamedTuple):
     """Coefficients of the local rules (all float64).
 
     ``alpha``: (n, 2), face ``i``: weight ``alpha[i, 0]`` towards ``E_i`` and ``alpha[i, 1]``
-    towards ``E_{i+1}`` (seed 002 eq. 12).  ``beta``: (n, 2), edge ``i``: ``beta[i, 0]`` across
+    towards ``E_{i+1}`` ([FSLYJ] eq. 12).  ``beta``: (n, 2), edge ``i``: ``beta[i, 0]`` across
     (towards the ``E_{i+1}`` side), ``beta[i, 1]`` along the spoke (towards ``E_i``).
     ``translation``: (2,), ``T = V^1`` on the eigen-polyhedron.  ``lam``: the scale.
     """
@@ -598,13 +598,13 @@ def _solve_batch(d: np.ndarray, angles: str, lengths: str):
     f, f_prev = 1 + n + i, 1 + n + (i - 1) % n
     poly = p0[:, None]  # (g, 1, size, 2): one polyhedron for all rules of a vertex
 
-    # Face points, seed 002 eq. (12): bilinear in (alpha_1 -> E_i, alpha_2 -> E_{i+1}) with
+    # Face points, [FSLYJ] eq. (12): bilinear in (alpha_1 -> E_i, alpha_2 -> E_{i+1}) with
     # target V^1 + lambda F^_i.
     mat[:, f], alpha = bilinear_rule(
         face_corners(size, e, e_next, f), poly, t_vec[:, None] + lam * p0[:, f], "face"
     )
 
-    # Edge points, seed 002 Appendix (seed 000 eqs. 23-28): bilinear in (beta_1 across,
+    # Edge points, [FSLYJ] Appendix ([TLC] eqs. 23-28): bilinear in (beta_1 across,
     # beta_2 along) on the quad of (P_{i,1}+V)/2, (P_{i,2}+V)/2, (P_{i,3}+E_i)/2, (P_{i,4}+E_i)/2.
     corners = edge_corners(size, e, e_prev, e_next, f_prev, f, alpha[:, (i - 1) % n, 0], alpha[:, i, 1])
     mat[:, e], beta = bilinear_rule(corners, poly, t_vec[:, None] + lam * p0[:, e], "edge")
@@ -639,16 +639,16 @@ def local_subdivision_matrix(
     """One step of the [LFS16] non-uniform Catmull-Clark rule on a vertex's 1-ring.
 
     intervals: (n,) spoke knot intervals ``d_0..d_{n-1}`` (n >= 3, finite, positive).
-    angles: ``"standard"`` (``2 pi / n``, [LFS16]) or ``"modified"`` (seed 001).
-    lengths: ``"fourier"`` (seeds 000/001, [LFS16]; default) or ``"appendix"`` (seed 002 as
+    angles: ``"standard"`` (``2 pi / n``, [LFS16]) or ``"modified"`` ([ZTL]).
+    lengths: ``"fourier"`` ([TLC] and [ZTL], [LFS16]; default) or ``"appendix"`` ([FSLYJ] as
         printed, reconstructed; fails the eigenvalue check at large ratios, see
         :func:`spoke_lengths`).
     Returns ``M``: (2n+1, 2n+1) float64, read-only, new = ``M @ old`` in the order
     [V, E_0..E_{n-1}, F_0..F_{n-1}] (module docstring).  Rows sum to 1.
 
-    Rows: vertex, seed 002 eq. (11) (:func:`vertex_rule_weights`); face ``i``, eq. (12):
+    Rows: vertex, [FSLYJ] eq. (11) (:func:`vertex_rule_weights`); face ``i``, eq. (12):
     ``(1-a1)(1-a2) V + a1 (1-a2) E_i + (1-a1) a2 E_{i+1} + a1 a2 F_i`` with ``(a1, a2)`` solving
-    ``V^1 + lambda F^_i = (same bilinear form on the eigen-polyhedron)``; edge ``i``: seed 002's
+    ``V^1 + lambda F^_i = (same bilinear form on the eigen-polyhedron)``; edge ``i``: [FSLYJ]'s
     edge rule with ``P_{i,1..4}`` built from the neighbouring faces' ``alpha`` and ``(b1, b2)``
     solving ``V^1 + lambda E^_i = ...``.  Both solves are closed-form quadratics
     (:func:`bilinear_roots`); the root on the branch through the unit square is used
@@ -676,7 +676,7 @@ def rule_coefficients(
 
 
 # --------------------------------------------------------------------------------------------
-# 4. Eigen-analysis: limit point and tangent plane (seed 002 section 3.5, steps 2-3)
+# 4. Eigen-analysis: limit point and tangent plane ([FSLYJ] sec. 3.5, steps 2-3)
 
 
 class _Eigen(NamedTuple):
@@ -702,7 +702,7 @@ def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
         raise ValueError(f"valence {n} intervals {list(key)}: eigenvalue 1 is not simple")
     limit = vt[-1] / vt[-1].sum()
 
-    # Right eigenvectors for lambda are known in closed form (seed 001 after eq. 3):
+    # Right eigenvectors for lambda are known in closed form ([ZTL] after eq. 3):
     # R = P^0 - 1 T / (1 - lambda).  Left eigenvectors: the 2-D null space of (M - lambda I)^T,
     # normalised by L R = I; since L 1 = 0 this is L P^0 = I_2.
     right = p0 - coeffs.translation[None, :] / (1.0 - lam)
@@ -715,7 +715,7 @@ def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
     left = vt[-2:]
     left = np.linalg.solve(left @ right, left)
 
-    # Seed 002 step 3: N^_{ij} = N_{i+1,j+1} - N_{0,j+1} acts on P^ = [E - V, F - V]; Q projects
+    # [FSLYJ] step 3: N^_{ij} = N_{i+1,j+1} - N_{0,j+1} acts on P^ = [E - V, F - V]; Q projects
     # onto its lambda-eigenspace, Q = (D R) L[:, 1:], and V-bar = Q P^.  As weights on the local
     # points: Q D = (D R) L with D = [-1 | I].
     dmat = np.hstack([-np.ones((size - 1, 1)), np.eye(size - 1)])
@@ -728,8 +728,8 @@ def subdivision_eigenvalues(
 ) -> np.ndarray:
     """Eigenvalues of :func:`local_subdivision_matrix`, (2n+1,) complex128, by modulus, largest
     first (ties: larger real part first).  By construction 1 and ``lambda`` (twice) are among
-    them; G1 needs ``1 > lambda = lambda > |others|`` (seed 000 section 3), which the
-    construction does not guarantee (seed 000 section 6: "no proof").  Measured
+    them; G1 needs ``1 > lambda = lambda > |others|`` ([TLC] sec. 3), which the
+    construction does not guarantee ([TLC] sec. 6: "no proof").  Measured
     (``benchmarks/eigen.py``, default options, spoke ratio max/min = r, intervals uniform or
     log-uniform in [1, r], n = 3..16):
 
@@ -737,7 +737,7 @@ def subdivision_eigenvalues(
     * r >= 50: n = 3, 6, 10 still hold up to r = 1e4; n = 5, 8, 12, 16 fail in a growing share
       (log-uniform, r = 1e4: about half for n = 5): a negative eigenvalue of modulus > lambda,
       and for n = 8 some bilinear solves have no real root (ValueError);
-    * ``angles="modified"`` (seed 001) behaves alike: its claim of G1 for intervals in
+    * ``angles="modified"`` ([ZTL]) behaves alike: its claim of G1 for intervals in
       [1e-6, 1] at n = 3, 5, 6, 7, 8 is not reproduced for n = 5 and 8;
     * ``lengths="appendix"`` fails already from r = 10 (eigenvalues > 1 for some n = 7 cases).
 
@@ -759,7 +759,7 @@ def subdivision_eigenvalues(
 def limit_point_weights(
     intervals, angles: str = "standard", lengths: str = "fourier"
 ) -> np.ndarray:
-    """Weights of the limit position of ``V``: (2n+1,) float64, sum 1 (seed 002 section 3.5
+    """Weights of the limit position of ``V``: (2n+1,) float64, sum 1 ([FSLYJ] sec. 3.5
     step 2: the left eigenvector of eigenvalue 1, ``C = L^0 P``)."""
     _check_choice("angles", angles, ANGLE_CHOICES)
     _check_choice("lengths", lengths, LENGTH_CHOICES)
@@ -769,7 +769,7 @@ def limit_point_weights(
 def tangent_weights(intervals, angles: str = "standard", lengths: str = "fourier") -> np.ndarray:
     """Two tangent vectors at the limit point: (2, 2n+1) float64, each row sums to 0.
 
-    The rows are the left eigenvectors of the subdominant eigenvalue ``lambda`` (seed 002 section
+    The rows are the left eigenvectors of the subdominant eigenvalue ``lambda`` ([FSLYJ] section
     3.5 step 3), normalised against the right eigenvectors ``P^0 - 1 T / (1 - lambda)`` (the
     eigen-polyhedron, which spans them by construction) so that ``rows @ P^0 = I_2``: row 0 is
     the derivative of the limit surface along the eigen-polyhedron's x axis (spoke 0's
@@ -785,11 +785,11 @@ def tangent_weights(intervals, angles: str = "standard", lengths: str = "fourier
 def tangent_projector(
     intervals, angles: str = "standard", lengths: str = "fourier"
 ) -> np.ndarray:
-    """Seed 002 section 3.5 step 3 as weights: (2n, 2n+1) float64, rows sum to 0.
+    """[FSLYJ] sec. 3.5 step 3 as weights: (2n, 2n+1) float64, rows sum to 0.
 
     Row ``k`` gives ``V-bar_k = (Q P^)_k``, the projection of ``P^ = [E_0 - V, .., E_{n-1} - V,
     F_0 - V, .., F_{n-1} - V]`` onto the ``lambda``-eigenspace of
-    ``N^_{ij} = N_{i+1,j+1} - N_{0,j+1}``: the vectors that seed 002 step 4 moves the auxiliary
+    ``N^_{ij} = N_{i+1,j+1} - N_{0,j+1}``: the vectors that [FSLYJ] step 4 moves the auxiliary
     points with (it uses the face rows ``V-bar_{n+i}``).  Every row is a combination of the two
     rows of :func:`tangent_weights`, so all ``V-bar_k`` lie in the tangent plane.
     """

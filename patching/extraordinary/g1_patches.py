@@ -1,4 +1,4 @@
-"""Bi-quintic G1 patches around extraordinary points (seed 002, section 3.4), as row mixing.
+"""Bi-quintic G1 patches around extraordinary points ([FSLYJ] sec. 3.4), as row mixing.
 
 Every coefficient of every patch is a row over the columns [control points | anchors] (see
 ``bezier_extraction``).  Irregular faces (faces with an EP corner) are degree-elevated to
@@ -21,7 +21,7 @@ by a spoke to another EP take steps 1-3 jointly instead, one fairing solve per c
 (``cluster_fairing``, ``build_operator(g1_solve="joint")``, the default): the per-EP order
 folds patches there that no per-EP rule can avoid.
 
-Reconstruction of the red problem (seed 002 text lost between "with linear constraints," and
+Reconstruction of the red problem ([FSLYJ] text lost between "with linear constraints," and
 "where M_vA"): minimise sum |D - D_hat|^2 over the differences D of the ring V_0 = P00,
 spoke points and face points (D_{3i} = s_i - P00, D_{3i+1} = f_i - s_i, D_{3i+2} = s_{i+1} - f_i)
 subject to G_0 of every spoke.  Deviation, said in the issue note: the paper then takes
@@ -33,7 +33,7 @@ translation, so P00 is held at its extraction value; the solves use the null spa
 constraints and pseudo-inverses (G_0 has rank n - 2: the tangent plane), which tolerate the
 dependent rows.
 
-Spoke curves (ours; issue 6 note).  G_0 makes the spoke legs s_i - P00 the image of the
+Spoke curves (ours).  G_0 makes the spoke legs s_i - P00 the image of the
 characteristic fan, whose lengths follow the intervals (l_i about d_i), so where intervals
 run against the control net's spacing stage 1 shortens or stretches a leg s_i a lot while
 the far part of the spoke curve (P40, P50: the regular far end) stays.  Stage 2 then kept
@@ -62,13 +62,13 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from .angle_configuration import angle_configuration
-from .features import CORNER_SECTOR, CREASE_SECTOR, Features
-from .g1_constraints import a_slot, b_slot, r_slot, spoke_equations
-from .surface import CORNER_PARAMETERS
-from .topology import Topology
+from patching.extraordinary.angle_configuration import angle_configuration
+from patching.topology.features import CORNER_SECTOR, CREASE_SECTOR, Features
+from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
+from patching.surface import CORNER_PARAMETERS
+from patching.topology.tables import Topology
 
-__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights"]
+__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
 QUINTIC = 5
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
@@ -99,7 +99,7 @@ class EPGroup:
     half-edge); d: their intervals; faces: patch i = face(h_i) (-1 for a boundary ring's gap,
     patch n - 1); corner: the EP's corner in that face; far: the vertex at the far end of each
     spoke if it is an EP (else -1); far_spoke: that spoke's index in the far EP's ring.
-    sharp: (n,) the pattern of sharp spokes (seed 002 section 4.2: sectors, no G1 across them);
+    sharp: (n,) the pattern of sharp spokes ([FSLYJ] sec. 4.2: sectors, no G1 across them);
     boundary: the ring is an open fan; theta: (n,) fixed sector angles per patch for rings with
     sharp spokes or an interpolated vertex (``features``), None where the angles come from
     ``angle_configuration``."""
@@ -183,7 +183,7 @@ def _sector_angles(sharp: np.ndarray, boundary: bool, interpolated: bool) -> np.
 
 def corner_sector_angle(faces: int) -> float:
     """The angle of a corner sector of ``faces`` quads: the topological angle faces * pi / 2
-    (seed 000's corner rules as ``subdivision`` reads them: a concave sector of three quads,
+    ([TLC]'s corner rules as ``subdivision`` reads them: a concave sector of three quads,
     an L's inner corner, spans 3 pi / 2) where that is not a multiple of pi; pi / 2 for two
     quads and 3 pi / 2 for four or more.  A multiple of pi would make the fan's two crease
     spokes parallel, and G_0 would then need the pinned crease legs parallel too, which at a
@@ -312,7 +312,7 @@ def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return uniq, inverse.ravel()
 
 
-def _key(row: np.ndarray) -> tuple:
+def cache_key(row: np.ndarray) -> tuple:
     """A cache key of a float row: NaN (no value) becomes None, since NaN != NaN and its hash
     is per object, so a key holding NaN never hits an lru_cache."""
     return tuple(None if x != x else x for x in row.tolist())
@@ -329,7 +329,7 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.
-    Stage 1 (seed 002 section 3.4): P00 held, spoke points s and face points f nearest to the
+    Stage 1 ([FSLYJ] sec. 3.4): P00 held, spoke points s and face points f nearest to the
     extraction's differences D under G_0; every input is then in the anchors' plane, so the
     tangent plane is section 3.5's.  Stage 2: f and q (= P^i[2,0]) nearest to their targets
     under G_1, with P00 and s kept: f from stage 1, q_hat + (s - s_hat) / 2 (module docstring,
@@ -484,7 +484,7 @@ class G1Assembly:
             uniq, inverse = _unique_rows(keys)
             skip = tuple(bool(x) for x in g.unconstrained)
             ops = np.array(
-                [_red_operator(n, tuple(_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip) for row in uniq]
+                [_red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip) for row in uniq]
             )
             present = g.patches
 
@@ -540,7 +540,7 @@ class G1Assembly:
                     axis=1,
                 )[sel]
                 uniq, inverse = _unique_rows(keys[sel, i])
-                weights = np.array([_green_weights(*_key(row)) for row in uniq])[inverse]  # (E, 4, 18)
+                weights = np.array([_green_weights(*cache_key(row)) for row in uniq])[inverse]  # (E, 4, 18)
                 tgt = slots[:, [a_slot(2), b_slot(2), a_slot(3), b_slot(3)]]
                 mixer.set(tgt, slots, weights)
 
@@ -560,12 +560,12 @@ def _subset(g: EPGroup, keep: np.ndarray) -> EPGroup:
 def _sector_beta(g: EPGroup) -> np.ndarray:
     """(E, n) beta(0) of every spoke of a ring with fixed sector angles; NaN on sharp spokes.
 
-    The fan v_i = d_i (cos phi_i, sin phi_i) satisfies seed 002's eq. (5) with l_i = d_i
+    The fan v_i = d_i (cos phi_i, sin phi_i) satisfies [FSLYJ]'s eq. (5) with l_i = d_i
     wherever sin(theta_{i-1}) = sin(theta_i) (equal angles inside a sector; FOUR_FAN), and
     then alpha_i v_{i+1} + gamma_i v_{i-1} = beta_i v_i with
     beta_i(0) = d_{i-1} d_{i+1} sin(theta_{i-1} + theta_i) / sin(theta_{i-1}) (the printed b of
     ``angle_configuration`` with the g1_constraints sign; 2 d_{i-1} d_{i+1} cos(theta) for
-    equal angles, [32]'s uniform rule per sector).  With these lengths the two crease legs of
+    equal angles, [SSEL13]'s uniform rule per sector).  With these lengths the two crease legs of
     a sector of angle pi come out in the ratio of their intervals, the ratio in which the
     crease B-spline's Bezier legs stand, so G_0 of the inner spokes is consistent with both
     pinned crease legs (a fitted fan need not be)."""

@@ -1,4 +1,4 @@
-"""Feature-adaptive refinement for semi-sharp creases (issue 4).
+"""Feature-adaptive refinement for semi-sharp creases.
 
 ``build_operator`` handles semi-sharp tags by ``N = ceil(s)`` *global* subdivision steps before
 patching while the refined mesh stays small (1,024 faces, or with refinement="global" 6 steps
@@ -54,16 +54,20 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import UnsupportedError
-from .features import sharp_edges
-from .mesh import INFINITELY_SHARP, ControlMesh
-from .operator import _refinement, build_operator
-from .subdivision import subdivision_operator
-from .surface import CORNER_PARAMETERS
-from .topology import Topology
+from patching.bernstein import evaluate_nets
+from patching.errors import UnsupportedError
+from patching.topology.features import sharp_edges
+from patching.mesh.control_mesh import INFINITELY_SHARP, ControlMesh
+from patching.operator.assembly import assemble
+from patching.operator.refinement import refinement_plan
+from patching.operator.split_sides import adaptive_layout, split_side_topology
+from patching.options import BuildOptions
+from patching.subdivision.catmark import subdivision_operator
+from patching.surface import CORNER_PARAMETERS, OperatorGroup, SurfaceOperator
+from patching.topology.tables import Topology
 
 __all__ = [
-    "AdaptivePatches", "adaptive_operator", "global_steps", "child_parameters", "junction_residuals", "MAX_ADAPTIVE_STEPS",
+    "AdaptivePatches", "adaptive_operator", "adaptive_surface_operator", "global_steps", "child_parameters", "junction_residuals", "MAX_ADAPTIVE_STEPS",
 ]
 
 #: Most adaptive levels (gregory_test7 needs 9).
@@ -81,8 +85,8 @@ RULE_DEPTH = 3
 def global_steps(mesh: ControlMesh, topology: Topology | None = None) -> int:
     """N: ceil of the largest finite sharpness (edges and corners), or 1 for a mesh with
     non-quad faces and no semi-sharp tag, 0 otherwise: the steps ``build_operator`` takes
-    (read from ``operator._refinement`` itself, so the two cannot drift apart)."""
-    return _refinement(topology or Topology(mesh))[0]
+    (read from ``refinement.refinement_plan`` itself, so the two cannot drift apart)."""
+    return refinement_plan(topology or Topology(mesh))[0]
 
 
 @dataclass
@@ -298,11 +302,8 @@ def _child_gid(level_index: int, mesh0: ControlMesh, gid: np.ndarray, corner: np
 def adaptive_operator(
     mesh: ControlMesh,
     radius: int = 2,
-    angles: str = "optimized",
-    anchors: str = "eigen-polyhedron",
+    options: BuildOptions = BuildOptions(),
     keep_levels: bool = False,
-    interior: str = "extraction",
-    g1_solve: str = "joint",
 ) -> AdaptivePatches | tuple[AdaptivePatches, list[_Level]]:
     """The adaptive patches of ``mesh`` (module docstring): leaves refined near seeds only.
 
@@ -312,14 +313,14 @@ def adaptive_operator(
     with 1 the tests find leaves that differ from the global surface.  Returns AdaptivePatches, and with
     keep_levels=True also the list of windows (``_Level``) for tests.
     Raises UnsupportedError beyond MAX_ADAPTIVE_STEPS levels, and whatever
-    ``subdivision_operator`` / ``build_operator`` raise on the windows.
+    ``subdivision_operator`` / ``assembly.assemble`` raise on the windows.
     """
     topo = Topology(mesh)
     steps = global_steps(mesh, topo)
     if steps > MAX_ADAPTIVE_STEPS:
         raise UnsupportedError(f"sharpness needs {steps} adaptive levels; at most {MAX_ADAPTIVE_STEPS} are done", mesh.name)
     # Zero strips: the windows build (their runs of 2^j zero strips are knot insertion, not
-    # tears, hence build_operator's _refined), but the patches of several levels do not close
+    # tears, so the windows skip ``refusals``), but the patches of several levels do not close
     # up (torus 12 x 10, one zero strip, s = 7: no solid, 2,560 free edges).
     zero = np.flatnonzero(topo.edge_interval == 0)
     if zero.size:
@@ -361,7 +362,7 @@ def adaptive_operator(
             chosen = _unpinch(topo, _grow(inc, leaves, PATCH_MARGIN))
             sub, fid, vid, _ = _submesh(lev.mesh, topo, chosen, clear_semi_sharp=True)
             n_patch_faces = sub.n_faces
-            op = build_operator(sub, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, _refined=True)
+            op = assemble(sub, Topology(sub), options)
             on_points = lev.rows[vid]
             for g in op.groups:
                 window_face = fid[g.faces]
@@ -478,8 +479,6 @@ def child_parameters(corner: int, s: np.ndarray, t: np.ndarray) -> tuple[np.ndar
 def junction_residuals(patches: AdaptivePatches, points: np.ndarray, samples: int = 9) -> tuple[float, float]:
     """Largest gap (absolute) and normal angle (radians) between the two sides of every
     junction whose patches differ in level, at ``samples`` points along each fine side."""
-    from .evaluation import evaluate_nets
-
     nets = patches.nets(points)
     where = {}
     for d, (ids, _) in nets.items():
@@ -503,3 +502,22 @@ def junction_residuals(patches: AdaptivePatches, points: np.ndarray, samples: in
         gap = max(gap, float(np.linalg.norm(xa - xb, axis=1).max()))
         angle = max(angle, float(np.arctan2(np.linalg.norm(np.cross(na, nb), axis=1), np.sum(na * nb, axis=1)).max()))
     return gap, angle
+
+
+def adaptive_surface_operator(mesh: ControlMesh, options: BuildOptions) -> SurfaceOperator:
+    """M of the feature-adaptive refinement (``adaptive.adaptive_operator``): rows grouped by
+    degree, the patch topology with split sides at the T-junctions (``split_sides``).  A
+    patch's face id is its first descendant on the finest level (the ids a global refinement
+    of that many steps would give it)."""
+    patches = adaptive_operator(mesh, options=options)
+    order, table = adaptive_layout(patches)
+    blocks, groups, offset = [], [], 0
+    for d in np.unique(patches.degree[order]).tolist():
+        ids = order[patches.degree[order] == d]
+        rows = (patches.row_offset[ids][:, None] + np.arange((d + 1) ** 2)[None, :]).ravel()
+        blocks.append(patches.matrix[rows])
+        faces = patches.face[ids] * 4 ** (patches.steps - patches.level[ids])
+        groups.append(OperatorGroup(int(d), faces.astype(np.int64), offset))
+        offset += rows.size
+    matrix = sp.vstack(blocks).tocsr()
+    return SurfaceOperator(matrix, tuple(groups), split_side_topology(order.size, table), mesh.name)

@@ -1,4 +1,4 @@
-"""Bicubic Bézier extraction with auxiliary anchors (seed 002, section 3.2, Figs. 6-7, eqs. 1-3).
+"""Bicubic Bézier extraction with auxiliary anchors ([FSLYJ] sec. 3.2, Figs. 6-7, eqs. 1-3).
 
 Every corner of every quad face (a half-edge h: the corner origin(h) of face(h)) gets a *face
 point* FP[h], the interior Bézier point of that face nearest that corner.  Edge points and
@@ -15,7 +15,7 @@ coefficients of a face are its 4 face points, 8 edge points and 4 vertex points:
 
 All weights are affine combinations (rows sum to one) of mesh control points and *anchors*:
 an extraordinary point (EP) of valence n is replaced by n anchors, one per face around it,
-which stand for the face points at the EP (seed 002 Fig. 5).  Anchor columns follow the
+which stand for the face points at the EP ([FSLYJ] Fig. 5).  Anchor columns follow the
 control-point columns; ``anchor_column[h]`` names the anchor of corner h.
 
 Face points on a face whose corners are all regular are the double-knot-insertion points
@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .topology import Topology
+from patching.topology.tables import Topology
 
 __all__ = ["CubicExtraction", "cubic_extraction", "regular_face_points"]
 
@@ -281,7 +281,7 @@ def cubic_extraction(
     degenerate = total_w[topo.origin[hv]] <= 0
     vw[degenerate] = 1.0 / count[topo.origin[hv]][degenerate]
     # Vertices on a crease (two or more sharp edges) take the crease rule; a dart (one sharp
-    # edge) keeps the smooth vertex point (seed 000 section 4: the crease fades out there).
+    # edge) keeps the smooth vertex point ([TLC] sec. 4: the crease fades out there).
     on_crease = np.bincount(topo.edges[sharp_edge].ravel(), minlength=n) >= 2
     keep = ~on_crease[topo.origin[hv]] & ~corner_vertex[topo.origin[hv]]
     vertex_w = sp.csr_matrix((vw[keep], (topo.origin[hv][keep], hv[keep])), shape=(n, n_he))

@@ -1,7 +1,7 @@
 """Evaluating patches: points, normals, blending functions, and a quality report per EP.
 
 All vectorised over patches with Bernstein matrices; nets as in ``surface`` (net[i, j] times
-B_i(s) B_j(t)).  The report per EP (``ep_quality``, issue 6 item 6) gives the largest normal
+B_i(s) B_j(t)).  The report per EP (``ep_quality``,) gives the largest normal
 jump across its spoke edges and the number of local maxima of the blending functions around
 it; maxima are counted on patch grids joined along shared corners and sides into one graph
 (``sample_graph``), so a maximum at the EP or on a spoke is judged against every patch there.
@@ -16,11 +16,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .bernstein import bernstein
-from .mesh import ControlMesh
-from .operator import SurfaceOperator
-from .surface import BezierSurface
-from .topology import Topology
+from patching.bernstein import bernstein, evaluate_nets
+from patching.mesh.control_mesh import ControlMesh
+from patching.surface import BezierSurface, SurfaceOperator
+from patching.topology.tables import Topology
 
 __all__ = [
     "evaluate_nets",
@@ -41,29 +40,6 @@ __all__ = [
     "neighbourhood",
     "patch_rows",
 ]
-
-
-def evaluate_nets(nets: np.ndarray, s: np.ndarray, t: np.ndarray, derivatives: bool = False):
-    """Points of (k, d+1, d+1, c) nets at parameters (m,) s and t (pairs): (k, m, c).
-
-    With derivatives=True also returns S_s and S_t, each (k, m, c)."""
-    d = nets.shape[1] - 1
-    bs, bt = bernstein(d, s), bernstein(d, t)
-    points = _contract(bs, bt, nets)
-    if not derivatives:
-        return points
-    ds = d * _contract(bernstein(d - 1, s), bt, nets[:, 1:] - nets[:, :-1])
-    dt = d * _contract(bs, bernstein(d - 1, t), nets[:, :, 1:] - nets[:, :, :-1])
-    return points, ds, dt
-
-
-def _contract(bs: np.ndarray, bt: np.ndarray, nets: np.ndarray) -> np.ndarray:
-    """sum_ij bs[m, i] bt[m, j] nets[k, i, j, c] -> (k, m, c), as one matrix product with the
-    (m, ij) tensor basis (BLAS; an unoptimised einsum over four indices is ~10x slower)."""
-    basis = (bs[:, :, None] * bt[:, None, :]).reshape(bs.shape[0], -1)
-    k, a, b, c = nets.shape
-    flat = np.ascontiguousarray(nets).reshape(k, a * b, c).transpose(1, 0, 2).reshape(a * b, k * c)
-    return (basis @ flat).reshape(bs.shape[0], k, c).transpose(1, 0, 2)
 
 
 def _grid_normals(nets: np.ndarray, samples: int):
@@ -600,7 +576,7 @@ def ep_quality(
     eps=None,
     topology: Topology | None = None,
 ) -> list[EPQuality]:
-    """Quality report per extraordinary point (issue 6, item 6), for the surface
+    """Quality report per extraordinary point, for the surface
     ``operator.evaluate(mesh.vertices)``.
 
     Normal jumps: both patches at every spoke edge evaluated with numpy (``spoke_normal_jumps``,

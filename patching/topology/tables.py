@@ -1,4 +1,4 @@
-"""Topology tables of a control mesh: half-edges, edges, vertices, strips (DESIGN 2).
+"""Topology tables of a control mesh: half-edges, edges, vertices, strips (docs/knots.md).
 
 Half-edge h of face f runs from ``origin[h]`` to ``origin[next[h]]``; half-edges are numbered as
 the flat face-vertex list, so face f owns ``face_offsets[f]:face_offsets[f+1]``.  ``twin[h]`` is
@@ -14,8 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .errors import KnotError, MeshError, TagError
-from .mesh import ControlMesh
+from patching.errors import KnotError, MeshError, TagError
+from patching.mesh.control_mesh import ControlMesh
 
 __all__ = ["Topology"]
 
@@ -223,7 +223,7 @@ class Topology:
 
     @cached_property
     def strip_interval(self) -> np.ndarray:
-        """(strips,) float64 knot interval of every strip (default 1; DESIGN 2)."""
+        """(strips,) float64 knot interval of every strip (default 1; docs/knots.md)."""
         out = np.ones(self.n_strips)
         idx, values, pairs = self._tagged_edges(dict(self.mesh.intervals), "interval")
         if idx.size == 0:
@@ -260,6 +260,14 @@ class Topology:
         idx, values, _ = self._tagged_edges(dict(self.mesh.creases), "crease")
         out[idx] = values
         return out
+
+    @cached_property
+    def face_spans(self) -> np.ndarray:
+        """(f, 2) float64: the face's knot interval in u (edges h0, h2) and in v (h1, h3).
+
+        Zero in either direction: zero parametric area, no patch."""
+        base = self.mesh.face_offsets[:-1]
+        return np.stack([self.halfedge_interval[base], self.halfedge_interval[base + 1]], axis=1)
 
     def strips_summary(self) -> list[tuple[int, int, float]]:
         """(strip id, number of edges, interval) for every strip."""

@@ -1,4 +1,4 @@
-"""G1 constraints across a spoke edge of an extraordinary point (seed 002, section 3.3-3.4).
+"""G1 constraints across a spoke edge of an extraordinary point ([FSLYJ] sec. 3.3-3.4).
 
 Local frame of an EP of valence n (counter-clockwise spokes i = 0..n-1, patch i between spoke i
 and spoke i+1; the same numbering as ``angle_configuration``).  Patch i is a bi-quintic net

@@ -1,0 +1,160 @@
+"""The build pipeline that the command line and the Python API share: read a mesh, build its
+surface, make the B-rep (patch by patch, or packed into multi-span faces), warn about folds,
+write the file atomically.  ``build_file`` is one mesh; ``build_files`` many, in worker
+processes, each result reported on its own."""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import patching
+from patching.errors import NupatchError
+from patching.options import BuildOptions
+
+__all__ = ["BuildJob", "BuildResult", "EXACT_FORMATS", "STAGES", "build_file", "build_files", "run_build", "warn_folds"]
+
+#: Formats that carry the exact B-rep, so that packing applies to them.
+EXACT_FORMATS = ("step", "iges", "brep")
+#: Stages of one build, for progress reports.
+STAGES = ("reading", "patches", "B-rep", "writing")
+
+
+@dataclass(frozen=True)
+class BuildJob:
+    """One mesh to build and write: what a worker process receives (picklable).
+
+    mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
+    deflection of tessellated formats (None: their default); options: the build's choices;
+    pack: regular regions as multi-span B-spline faces (exact formats only)."""
+
+    mesh: str
+    out: str
+    fmt: str
+    tolerance: float | None = None
+    options: BuildOptions = field(default_factory=BuildOptions)
+    pack: bool = False
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """What one job gave: status "ok", "error" (bad input) or "bug"; a one-line message; the
+    NupatchWarnings raised on the way."""
+
+    job: BuildJob
+    status: str
+    message: str
+    notes: tuple[str, ...] = ()
+
+
+def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -> tuple[int, int]:
+    """Read, build, make the B-rep and write one mesh; returns (faces, patches).  ``stage(name)``
+    is called as each stage starts.  Raises the NupatchError family on bad input."""
+    from export.brep import to_shape
+    from export.formats import write
+
+    stage(STAGES[0])
+    mesh = patching.read_mesh(job.mesh)
+    stage(STAGES[1])
+    pack = job.pack and job.fmt in EXACT_FORMATS
+    # Packing merges the patches of one mesh: semi-sharp tags then take the global steps while
+    # they fit (``patching.operator.refinement``), not the adaptive path.
+    options = BuildOptions.of(job.options, refinement="global") if pack else job.options
+    surface = patching.build(mesh, options)
+    stage(STAGES[2])
+    if pack:
+        from export.pack import patch_spans, to_packed_shape
+
+        shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
+    else:
+        shape = to_shape(surface)
+    warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
+    stage(f"{STAGES[3]} {job.fmt}")
+    write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
+    return mesh.n_faces, surface.n_patches
+
+
+def build_file(
+    mesh: str | os.PathLike,
+    out: str | os.PathLike | None = None,
+    format: str | None = None,
+    *,
+    options: BuildOptions | None = None,
+    pack: bool = False,
+    tolerance: float | None = None,
+) -> Path:
+    """Build the mesh file ``mesh`` and write it to ``out`` (default: beside it, ``.step``) in
+    ``format`` (default: from the suffix), exactly as ``nupatch build`` does; returns the path."""
+    from export.atomic import check_output_path
+    from export.formats import format_of
+
+    if tolerance is not None:
+        from export.tolerances import check_tolerance
+
+        check_tolerance(tolerance)
+    mesh = Path(mesh)
+    out = Path(out) if out is not None else mesh.with_suffix("." + (format or "step"))
+    if out.resolve() == mesh.resolve():
+        raise NupatchError("the output would overwrite the input mesh", str(out))
+    fmt = format_of(out, format)
+    check_output_path(out)
+    run_build(BuildJob(str(mesh), str(out), fmt, tolerance, options or BuildOptions(), pack))
+    return out
+
+
+def warn_folds(surface: patching.BezierSurface) -> None:
+    """A NupatchWarning when a patch folds over itself (``evaluation.normal_turning`` below 0
+    on 9 x 9 samples): G1 holds, but the surface is not what a CAD user wants, and the cure
+    (finer control mesh near the EPs) is theirs to apply."""
+    from patching.evaluation import normal_turning
+
+    _, turning = normal_turning(surface, samples=9)
+    folded = int((turning < 0.0).sum())
+    if folded:
+        warnings.warn(
+            patching.NupatchWarning(
+                f"{folded} of {turning.size} patches fold over themselves: next to extraordinary points the "
+                "knot intervals run against the control net's spacing; one `nupatch subdivide` step of the mesh "
+                "usually removes such folds"
+            )
+        )
+
+
+def _build_worker(job: BuildJob) -> BuildResult:
+    """Run one job (in a worker process); never raises."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", patching.NupatchWarning)
+        try:
+            start = time.perf_counter()
+            faces, patches = run_build(job)
+            status = "ok"
+            message = f"{job.mesh}: {patches} patches from {faces} faces, wrote {job.out} ({job.fmt}) in {time.perf_counter() - start:.2f} s"
+        except NupatchError as exc:
+            status, message = "error", f"error: {exc}"
+        except Exception as exc:  # a bug, reported on its own line like the others
+            status, message = "bug", f"internal error: {type(exc).__name__}: {exc} ({job.mesh}; please report)"
+    notes = tuple(str(w.message) for w in caught if issubclass(w.category, patching.NupatchWarning))
+    return BuildResult(job, status, message, notes)
+
+
+def build_files(jobs: Iterable[BuildJob], workers: int = 1, report: Callable[[BuildResult], None] = lambda r: None) -> list[BuildResult]:
+    """Build every job, in up to ``workers`` processes; ``report`` is called with each result as
+    it comes (in completion order); one failure never stops the others."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    jobs = list(jobs)
+    results = []
+    if workers <= 1 or len(jobs) <= 1:
+        for job in jobs:
+            results.append(_build_worker(job))
+            report(results[-1])
+        return results
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+        for future in as_completed([pool.submit(_build_worker, job) for job in jobs]):
+            results.append(future.result())
+            report(results[-1])
+    return results

@@ -1,0 +1,76 @@
+"""One entry point for M: options validated once, the input checked once, then the uniform or
+the adaptive refinement (siblings, as OpenSubdiv's ``RefineUniform`` / ``RefineAdaptive``
+under one ``TopologyRefiner``), or the mesh itself when it needs none."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from patching.errors import MeshError, UnsupportedError
+from patching.mesh.control_mesh import ControlMesh
+from patching.operator.adaptive import adaptive_surface_operator
+from patching.operator.assembly import assemble
+from patching.operator.refinement import refinement_plan, uniform_operator
+from patching.operator.refusals import refuse_input
+from patching.options import BuildOptions
+from patching.surface import BezierSurface, SurfaceOperator
+from patching.topology.tables import Topology
+from patching.util.blas import one_blas_thread
+
+__all__ = ["build_operator", "build"]
+
+
+@one_blas_thread
+def build_operator(
+    mesh: ControlMesh,
+    options: BuildOptions | None = None,
+    *,
+    topology: Topology | None = None,
+    force_extraordinary: Sequence[int] = (),
+    angles: str | None = None,
+    anchors: str | None = None,
+    interior: str | None = None,
+    g1_solve: str | None = None,
+    refinement: str | None = None,
+) -> SurfaceOperator:
+    """M for a polygon mesh with knot intervals and tags: coefficients = M @ control points.
+
+    Bicubic patches on regular faces, G1 bi-quintic patches on faces touching extraordinary
+    points ([FSLYJ] sec. 3), sharp features as in [FSLYJ] sec. 4.2.  Semi-sharp tags and
+    non-quad faces are refined first (``refinement``), globally or adaptively, and M includes
+    those steps.  ``options`` (``BuildOptions``) or its fields as keywords choose the angle
+    configuration, anchors, interior rule, G1 solve and refinement; ``topology``: the mesh's
+    Topology if already built; ``force_extraordinary``: interior vertices patched as EPs
+    whatever their valence.  OptionError for an unknown option value.
+    """
+    options = BuildOptions.of(options, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement)
+    topo = topology or Topology(mesh)
+    # Tears are judged on the user's mesh, before any refinement: refining a zero strip
+    # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
+    # 2^k zero strips where the surface is the input's.
+    refuse_input(topo)
+    steps, adaptive = refinement_plan(topo, options.refinement)
+    if (steps or adaptive) and len(force_extraordinary):
+        raise UnsupportedError("force_extraordinary applies to meshes that need no refinement", mesh.name)
+    if adaptive:
+        return adaptive_surface_operator(mesh, options)
+    if steps:
+        return uniform_operator(mesh, steps, options)
+    return assemble(mesh, topo, options, force_extraordinary)
+
+
+def build(mesh: ControlMesh, options: BuildOptions | None = None, **option_fields: str) -> BezierSurface:
+    """The patched surface of a mesh: ``build_operator(mesh, options).evaluate(mesh.vertices)``
+    (``refinement="global"`` for ``export.pack``, which needs the patches of one mesh).
+
+    MeshError when no face gives a patch (holes, interpolateboundary 0, zero intervals): an
+    empty surface is no solid or shell, and nothing the exporters could write."""
+    surface = build_operator(mesh, BuildOptions.of(options, **option_fields)).evaluate(mesh.vertices)
+    if surface.n_patches == 0:
+        causes = [f"{len(mesh.holes)} of {mesh.n_faces} faces are holes"] if mesh.holes else []
+        if mesh.interpolate_boundary == 0:
+            causes.append("interpolateboundary 0 drops every face at the open boundary")
+        if any(d == 0.0 for d in mesh.intervals.values()):
+            causes.append("zero knot intervals leave faces of no parametric area")
+        raise MeshError(f"no face gives a patch, the surface is empty ({'; '.join(causes) or 'no face has a patch'})", mesh.name)
+    return surface

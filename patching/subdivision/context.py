@@ -1,0 +1,271 @@
+"""What one Catmull-Clark step reads of the parent mesh: topology, knot intervals and
+sharpness levels gathered into arrays (``_Context``), and the triplet rows of S (``_Rows``).
+Shared by the modules of ``subdivision`` only."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from patching.mesh.control_mesh import INFINITELY_SHARP, ControlMesh
+from patching.rules.catmark import (
+    CORNER,
+    CREASE,
+    DART,
+    SMOOTH,
+)
+from patching.topology.tables import Topology
+
+
+
+
+def _decrement(s: np.ndarray) -> np.ndarray:
+    """OpenSubdiv's uniform creasing: ``s - 1`` (0 when ``s <= 1``), infinite stays infinite."""
+    return np.where(np.isinf(s), np.inf, np.where(s > 1.0, s - 1.0, 0.0))
+
+
+def _chaikin(es: np.ndarray, edges: np.ndarray, nv: int) -> np.ndarray:
+    """OpenSubdiv's Chaikin creasing (``Sdc::Crease::SubdivideEdgeSharpnessesAroundVertex``
+    with ``CREASE_CHAIKIN``): (e, 2) sharpness of the half of every edge at its end
+    ``edges[:, k]``.
+
+    At a vertex with c >= 2 semi-sharp edges (0 < s < infinity) a semi-sharp edge's half gets
+    ``3/4 s + 1/4 (mean of the other c - 1 semi-sharp sharpnesses) - 1`` (0 if that is <= 0);
+    with c = 1 the uniform ``s - 1``; smooth halves stay 0, infinite ones infinite.  The two
+    halves of an edge may differ (each reads its own end's neighbourhood).  A half is never
+    sharper than the largest sharpness at its end minus one, so ``ceil(max s)`` steps still
+    clear every semi-sharp tag."""
+    semi = (es > 0) & np.isfinite(es)
+    total = np.zeros(nv)
+    count = np.zeros(nv)
+    for k in (0, 1):
+        np.add.at(total, edges[semi, k], es[semi])
+        np.add.at(count, edges[semi, k], 1.0)
+    out = np.empty((es.size, 2))
+    finite = np.where(semi, es, 0.0)
+    for k in (0, 1):
+        c, t = count[edges[:, k]], total[edges[:, k]]
+        others = (t - finite) / np.maximum(c - 1.0, 1.0)
+        ch = 0.75 * finite + 0.25 * others - 1.0
+        out[:, k] = np.where(semi & (c > 1), np.where(ch > 0, ch, 0.0), _decrement(es))
+    return out
+
+
+class _Rows:
+    """COO triplets of S, gathered rule by rule."""
+
+    def __init__(self) -> None:
+        self.r: list[np.ndarray] = []
+        self.c: list[np.ndarray] = []
+        self.v: list[np.ndarray] = []
+
+    def add(self, rows, cols, vals) -> None:
+        rows, cols, vals = np.broadcast_arrays(
+            np.asarray(rows, np.int64), np.asarray(cols, np.int64), np.asarray(vals, np.float64)
+        )
+        self.r.append(rows.ravel())
+        self.c.append(cols.ravel())
+        self.v.append(vals.ravel())
+
+    def matrix(self, shape) -> sp.csr_matrix:
+        r = np.concatenate(self.r) if self.r else np.zeros(0, np.int64)
+        c = np.concatenate(self.c) if self.c else np.zeros(0, np.int64)
+        v = np.concatenate(self.v) if self.v else np.zeros(0)
+        m = sp.csr_matrix((v, (r, c)), shape=shape)
+        m.sum_duplicates()
+        m.eliminate_zeros()
+        return m
+
+
+@dataclass
+class _Level:
+    """Tags of one sharpness level (the parent's, or the child's after decrementing)."""
+
+    sharp: np.ndarray  # (e,) bool
+    vertex_sharp: np.ndarray  # (v,) bool
+    rule: np.ndarray  # (v,) int8: SMOOTH, DART, CREASE, CORNER
+    crease_edges: np.ndarray  # (v, 2) int64: the two sharp edges of a CREASE vertex, else -1
+
+
+class _Context:
+    """Topology tables, intervals and tags of one mesh, as flat arrays (read-only)."""
+
+    def __init__(self, mesh: ControlMesh, crease_method: str = "uniform") -> None:
+        t = Topology(mesh)
+        self.mesh, self.topo = mesh, t
+        self.crease_method = crease_method
+        self.H = t.origin.size
+        self.nf, self.ne, self.nv = t.n_faces, t.n_edges, t.n_vertices
+        self.origin, self.dest, self.nxt, self.prv = t.origin, t.dest, t.next, t.prev
+        self.twin, self.face, self.eoh, self.edges = t.twin, t.face, t.edge_of, t.edges
+        self.fsize = np.diff(mesh.face_offsets)
+        self.ksize = self.fsize[self.face]  # (H,) size of the face of each half-edge
+        self.d_e = t.edge_interval
+        self.d_h = t.halfedge_interval
+        si = t.strip_interval
+        self.uniform = bool(si.size == 0 or np.all(si == si[0]))
+        self.valence = t.valence
+        self.n_faces_at = np.bincount(self.origin, minlength=self.nv)
+        self.v_boundary = t.vertex_is_boundary
+        self.e_boundary = t.edge_is_boundary
+        # Sharpness: infinite at >= 10 and on every boundary edge (OpenSubdiv, all modes).
+        es = t.edge_sharpness.copy()
+        es[es >= INFINITELY_SHARP] = np.inf
+        es[self.e_boundary] = np.inf
+        self.es = es
+        vs = np.zeros(self.nv)
+        if mesh.corners:
+            idx = np.fromiter(mesh.corners.keys(), np.int64)
+            vs[idx] = np.fromiter(mesh.corners.values(), np.float64)
+        vs[vs >= INFINITELY_SHARP] = np.inf
+        if mesh.interpolate_boundary == 1:
+            topological_corner = self.v_boundary & (self.n_faces_at == 1) & (self.valence == 2)
+            vs[topological_corner] = np.inf
+        self.vs = vs
+        # Vertex touches a non-quad face.
+        self.v_nonquad = np.zeros(self.nv, bool)
+        self.v_nonquad[self.origin[self.ksize != 4]] = True
+
+    # -- levels -------------------------------------------------------------------------------
+    def level(self, es: np.ndarray, vs: np.ndarray) -> _Level:
+        """Rules from edge sharpness ``es``, (e,) or (e, 2) per end ``edges[:, k]`` (the
+        child's halves, which Chaikin creasing may give two values), and vertex sharpness."""
+        es = np.stack([es, es], axis=1) if es.ndim == 1 else es
+        at_end = es > 0
+        sharp = at_end.any(axis=1)
+        count = np.bincount(self.edges[at_end], minlength=self.nv)
+        vsharp = vs > 0
+        rule = np.where(vsharp | (count > 2), CORNER, np.minimum(count, 2)).astype(np.int8)
+        ends = np.full((self.nv, 2), -1, np.int64)
+        s0, s1 = np.flatnonzero(at_end[:, 0]), np.flatnonzero(at_end[:, 1])
+        if s0.size + s1.size:
+            vv = np.concatenate([self.edges[s0, 0], self.edges[s1, 1]])
+            ee = np.concatenate([s0, s1])
+            order = np.argsort(vv, kind="stable")
+            vv, ee = vv[order], ee[order]
+            first = np.searchsorted(vv, np.arange(self.nv))
+            crease = np.flatnonzero(rule == CREASE)
+            ends[crease, 0] = ee[first[crease]]
+            ends[crease, 1] = ee[first[crease] + 1]
+        return _Level(sharp, vsharp, rule, ends)
+
+    @cached_property
+    def parent(self) -> _Level:
+        return self.level(self.es, self.vs)
+
+    @cached_property
+    def child_es(self) -> np.ndarray:
+        """(e, 2) sharpness of the child half of every edge at its end ``edges[:, k]``."""
+        if self.crease_method == "chaikin":
+            return _chaikin(self.es, self.edges, self.nv)
+        d = _decrement(self.es)
+        return np.stack([d, d], axis=1)
+
+    @cached_property
+    def child(self) -> _Level:
+        return self.level(self.child_es, _decrement(self.vs))
+
+    @cached_property
+    def edge_sharp_weight(self) -> np.ndarray:
+        """(e,) weight of the crease rule in the edge point, the rest going to the smooth rule
+        (``Sdc::Scheme::ComputeEdgeVertexMask`` as ``Far::PrimvarRefiner`` calls it): 0 on a
+        smooth edge; 1 when both child halves stay sharp (the child vertex is a crease);
+        otherwise the parent sharpness s.  Uniform creasing: ``min(s, 1)``.  Chaikin creasing
+        can keep an edge of s < 1 sharp (1) and can clear a half of an edge of s > 1: then
+        OpenSubdiv's weight is s itself, unclamped (the smooth rule gets 1 - s < 0), kept so
+        that the points equal OpenSubdiv's."""
+        both = (self.child_es > 0).all(axis=1)
+        return np.where(self.es > 0, np.where(both, 1.0, self.es), 0.0)
+
+    # -- half-edge helpers --------------------------------------------------------------------
+    @cached_property
+    def face_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(h, h') for every half-edge h and every half-edge h' of the same face."""
+        k = self.ksize
+        h = np.repeat(np.arange(self.H), k)
+        start = np.repeat(np.cumsum(k) - k, k)
+        local = np.arange(h.size) - start
+        base = self.mesh.face_offsets[self.face[h]]
+        return h, base + local
+
+    @cached_property
+    def regular_line_vertex(self) -> np.ndarray:
+        """(v,) bool: straight lines continue through v (interior, valence 4, quads, untagged)."""
+        return (
+            ~self.v_boundary
+            & (self.valence == 4)
+            & ~self.v_nonquad
+            & (self.parent.rule == SMOOTH)
+            & (self.n_faces_at == 4)
+        )
+
+    @cached_property
+    def regular_boundary_vertex(self) -> np.ndarray:
+        """(v,) bool: the boundary line continues straight through v (two quads, valence 3,
+        no tag but the boundary crease itself)."""
+        return (
+            self.v_boundary
+            & (self.valence == 3)
+            & ~self.v_nonquad
+            & (self.parent.rule == CREASE)
+            & (self.n_faces_at == 2)
+        )
+
+    @cached_property
+    def ahead(self) -> np.ndarray:
+        """(H,) interval beyond dest(h) on h's straight line; h's own where there is no line.
+
+        Lines run straight through regular interior vertices, and along the boundary through
+        regular boundary vertices: there the boundary curve's next interval, as the boundary
+        crease rule (``crease_beyond``) reads it, so that the edge points of the spokes into the
+        boundary see the same knots as the boundary curve (a clamped side, docs/knots.md, then
+        keeps its zero strips degenerate: every point of a zero strip lies on the boundary)."""
+        out = self.d_h.copy()
+        b = self.dest
+        ok = self.regular_line_vertex[b]
+        hs = np.flatnonzero(ok)
+        c = self.nxt[self.twin[self.nxt[hs]]]
+        out[hs] = self.d_h[c]
+        # along the boundary: h's edge is a boundary edge, next(h) the spoke into the interior
+        hb = np.flatnonzero(self.regular_boundary_vertex[b] & (self.twin < 0) & (self.twin[self.nxt] >= 0))
+        out[hb] = self.d_h[self.nxt[self.twin[self.nxt[hb]]]]
+        return out
+
+    def ahead_back(self, h: np.ndarray) -> np.ndarray:
+        """Interval beyond origin(h), backwards along h (through the twin; along the boundary
+        through a regular boundary vertex; else h's own interval)."""
+        t = self.twin[h]
+        back = self.twin[self.prv[h]]  # spoke leaving origin(h) in the neighbouring face
+        along = (t < 0) & self.regular_boundary_vertex[self.origin[h]] & (back >= 0)
+        other = self.d_h[self.prv[np.maximum(back, 0)]]
+        return np.where(t >= 0, self.ahead[np.maximum(t, 0)], np.where(along, other, self.d_h[h]))
+
+    def crease_beyond(self, lev: _Level, e: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Interval beyond vertex v along the crease curve through sharp edge e."""
+        e0, e1 = lev.crease_edges[v, 0], lev.crease_edges[v, 1]
+        other = np.where(e0 == e, e1, e0)
+        through = lev.rule[v] == CREASE
+        return np.where(through, self.d_e[np.maximum(other, 0)], self.d_e[e])
+
+    # -- sectors (seed rules) -----------------------------------------------------------------
+    def theta_at(self, lev: _Level, h: np.ndarray) -> np.ndarray:
+        """BLZ's theta at origin(h) for the untagged edge of h (NaN where origin is untagged)."""
+        into = self.twin[self.prv]  # corner h is linked to the corner across edge prev(h)
+        link = (into >= 0) & ~lev.sharp[self.eoh[self.prv]]
+        src = np.flatnonzero(link)
+        g = sp.coo_matrix((np.ones(src.size), (src, into[src])), shape=(self.H, self.H))
+        _, label = connected_components(g, directed=False)
+        m = np.bincount(label)
+        alpha = np.bincount(label, weights=math.pi * (self.ksize - 2) / self.ksize)
+        lab = label[h]
+        rule = lev.rule[self.origin[h]]
+        theta = np.full(h.size, np.nan)
+        theta = np.where(rule == DART, 2 * math.pi / m[lab], theta)
+        theta = np.where(rule == CREASE, math.pi / m[lab], theta)
+        theta = np.where(rule == CORNER, alpha[lab] / m[lab], theta)
+        return theta
