@@ -40,7 +40,7 @@ sys.path.insert(0, str(ROOT))
 import patching  # noqa: E402
 from patching.evaluation.sampling import blending_maxima, ep_quality, neighbourhood  # noqa: E402
 from patching.topology.tables import Topology  # noqa: E402
-from tests.test_evaluation import ep_disc, lifted  # noqa: E402
+from tests.helpers import ep_disc, lifted# noqa: E402
 
 FIGURES = ROOT / "benchmarks" / "figures"
 #: Other maxima whose prominence (the dip separating them from higher ground) is below this

@@ -33,7 +33,7 @@ import patching  # noqa: E402
 from patching.errors import NupatchError  # noqa: E402
 from patching.evaluation.sampling import normal_turning  # noqa: E402
 from tests.conftest import shape_files  # noqa: E402
-from tests.test_g1_patches import with_random_intervals  # noqa: E402
+from tests.helpers import with_random_intervals# noqa: E402
 
 
 def folded_by_degree(surface: patching.BezierSurface, samples: int) -> dict[int, int]:

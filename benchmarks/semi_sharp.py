@@ -29,7 +29,7 @@ def meshes():
     sys.path.insert(0, str(REPO))
     import patching
     from patching.mesh.primitives import torus_grid
-    from tests.test_adaptive import cube_level2
+    from tests.helpers import cube_level2
 
     for kind, edges in TORUS_CREASES.items():
         for s in (2, 3, 5, 6, 9.99):

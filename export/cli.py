@@ -19,11 +19,13 @@ from export.atomic import check_output_path
 from patching.errors import InputFileError, NupatchError
 from patching.options import CHOICES, BuildOptions
 
+from export.tolerances import G1_TOLERANCE_DEG, N_WORST, SHARP_ANGLE_DEG
+
 __all__ = ["main"]
 
-#: export.continuity's defaults, repeated so that parsing the command line does not import
-#: OpenCASCADE (1.5 s); tests/test_continuity_table.py checks that they agree.
-CHECK_DEFAULTS = {"worst": 5, "sharp_angle_deg": 10.0, "g1_tolerance_deg": 1e-5}
+#: ``nupatch check``'s defaults, from ``export.tolerances`` (which imports no OpenCASCADE, so
+#: parsing the command line stays fast).
+CHECK_DEFAULTS = {"worst": N_WORST, "sharp_angle_deg": SHARP_ANGLE_DEG, "g1_tolerance_deg": G1_TOLERANCE_DEG}
 
 
 def _progress(args: argparse.Namespace, message: str) -> None:
@@ -192,47 +194,18 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    import numpy as np
+    from patching.topology.summary import mesh_summary
 
     mesh = patching.read_mesh(args.mesh)
-    topo = patching.Topology(mesh)
-    ep = topo.extraordinary
-    valences = {int(v): int(c) for v, c in zip(*np.unique(topo.valence[ep], return_counts=True))}
-    strips = topo.strips_summary()
-    intervals = sorted({d for _, _, d in strips})
-    info = {
-        "name": mesh.name,
-        "vertices": mesh.n_vertices,
-        "faces": mesh.n_faces,
-        "face_sizes": {int(k): int(c) for k, c in zip(*np.unique(mesh.face_sizes, return_counts=True))},
-        "edges": topo.n_edges,
-        "extraordinary_points": {"count": int(ep.size), "by_valence": valences},
-        "strips": len(strips),
-        "intervals": {"distinct": intervals[:20], "min": min(intervals), "max": max(intervals)},
-        "sharp_edges": int(np.count_nonzero(topo.edge_sharpness >= patching.mesh.control_mesh.INFINITELY_SHARP)),
-        "semi_sharp_edges": int(np.count_nonzero((topo.edge_sharpness > 0) & (topo.edge_sharpness < 10))),
-        "boundary_edges": int(np.count_nonzero(topo.edge_is_boundary)),
-        "closed": bool(not topo.edge_is_boundary.any()),
-        "interpolate_boundary": mesh.interpolate_boundary,
-    }
-    if info["semi_sharp_edges"] == 0 and mesh.is_quad_mesh:
-        # what the patch construction makes of the tags (patching.topology.features); meshes that are
-        # subdivided first are classified after those steps, so they are left out here
-        from patching.topology.features import features
-
-        feats = features(topo)
-        info["sharp_features"] = {
-            "corners": int(np.count_nonzero(feats.corner)),
-            "darts": int(np.count_nonzero(feats.dart)),
-            "sector_vertices": int(np.count_nonzero(feats.sector_vertex)),
-        }
+    info = mesh_summary(mesh)
+    valences, intervals = info["extraordinary_points"]["by_valence"], info["intervals"]
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
     print(f"{mesh.name}: {info['vertices']} vertices, {info['faces']} faces, {info['edges']} edges")
     print(f"  face sizes: {info['face_sizes']}")
-    print(f"  extraordinary points: {ep.size}" + (f" (valence: count {valences})" if valences else ""))
-    print(f"  strips: {len(strips)}, intervals from {min(intervals):g} to {max(intervals):g}")
+    print(f"  extraordinary points: {info['extraordinary_points']['count']}" + (f" (valence: count {valences})" if valences else ""))
+    print(f"  strips: {info['strips']}, intervals from {intervals['min']:g} to {intervals['max']:g}")
     print(f"  sharp edges: {info['sharp_edges']}, semi-sharp: {info['semi_sharp_edges']}")
     if "sharp_features" in info:
         f = info["sharp_features"]

@@ -40,7 +40,7 @@ import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from export.tolerances import G1_TOLERANCE_DEG, GAP_TOLERANCE, SHARP_ANGLE_DEG
+from export.tolerances import G1_TOLERANCE_DEG, GAP_TOLERANCE, N_WORST, SHARP_ANGLE_DEG
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
@@ -55,8 +55,6 @@ from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_Ind
 
 __all__ = ["EdgeDefect", "ContinuityReport", "check_continuity"]
 
-#: Entries of ``ContinuityReport.worst_edges`` per criterion (normal jump, then gap).
-N_WORST = 5
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from patching.errors import NupatchError
 
 __all__ = [
     "RELATIVE_TOLERANCE", "CONFUSION", "GAP_TOLERANCE", "G1_TOLERANCE_DEG", "SHARP_ANGLE_DEG",
-    "TESSELLATION_RELATIVE", "MIN_TESSELLATION", "ANGULAR_DEFLECTION", "RENDER_RELATIVE", "check_tolerance",
+    "N_WORST", "TESSELLATION_RELATIVE", "MIN_TESSELLATION", "ANGULAR_DEFLECTION", "RENDER_RELATIVE", "check_tolerance",
 ]
 
 #: Tolerance of the B-rep's vertices, edges and faces, times the size.
@@ -31,6 +31,8 @@ G1_TOLERANCE_DEG = 1e-5
 #: A normal jump above this (degrees) is a sharp edge in ``nupatch check``, not a defect: 10 deg
 #: is far above any defect the constructions leave.
 SHARP_ANGLE_DEG = 10.0
+#: Edges listed per criterion (normal jump, then gap) by ``nupatch check``.
+N_WORST = 5
 #: Default linear deflection of a tessellation (STL, glTF, OBJ), times the size.
 TESSELLATION_RELATIVE = 1e-3
 #: Smallest linear deflection (absolute): below Precision::Confusion BRepMesh_IncrementalMesh

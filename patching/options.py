@@ -2,8 +2,8 @@
 
 Every entry point (``patching.build_operator``, ``patching.build``, the command line,
 ``export.to_build123d`` / ``to_cadquery``) takes a ``BuildOptions``, or the same fields as
-keywords, and passes it on by value; the deeper modules never check these strings again.
-The command line takes its choices from ``CHOICES``.
+keywords, validated here once, and passes it on by value.  The choices are defined here
+only: the command line and the deeper modules take them from ``CHOICES``.
 """
 
 from __future__ import annotations

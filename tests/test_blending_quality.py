@@ -11,7 +11,7 @@ import pytest
 import patching
 from patching.evaluation.sampling import ep_quality
 from patching.topology.tables import Topology
-from tests.test_evaluation import ep_disc, lifted
+from tests.helpers import ep_disc, lifted
 
 #: Configurations (index in the benchmark's draw) where a second maximum showed: at ratio 5,
 #: before the spoke-curve target of red stage 2 (g1_patches), with the seed's cubic-isocurve

@@ -6,8 +6,8 @@ import pytest
 import patching
 from patching.mesh.primitives import open_grid
 from patching.subdivision import limit_points, subdivide
-from tests.test_creases import distance_to_surface
-from tests.test_g1_patches import shared_edge_normal_jumps
+from tests.helpers import distance_to_surface
+from tests.helpers import shared_edge_normal_jumps
 
 
 def jittered_grid(m, n, mode, seed=0, u=None, v=None):
@@ -52,7 +52,7 @@ def test_mode_2_smooths_the_corners_the_boundary_is_one_closed_bspline(ratio):
     boundary curve in that mode), and the patches are G1 inside."""
     from tests.edge_checks import crease_deviation, edge_jumps
 
-    from tests.test_g1_patches import with_random_intervals
+    from tests.helpers import with_random_intervals
 
     mesh = with_random_intervals(jittered_grid(5, 5, mode=2), ratio, seed=4)
     surface = patching.build(mesh)
@@ -65,7 +65,7 @@ def test_mode_2_smooths_the_corners_the_boundary_is_one_closed_bspline(ratio):
 
 def test_hole_faces_give_no_patch_and_leave_their_neighbours_unchanged():
     """OpenSubdiv's `t hole`: the face is not drawn, the rules around it do not change."""
-    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+    from tests.helpers import quad_mesh_with_eps, with_random_intervals
 
     base = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, 2)
     faces = [list(base.face(f)) for f in range(base.n_faces)]
@@ -86,7 +86,7 @@ def test_mode_0_drops_the_faces_at_the_boundary_and_keeps_the_rest(ratio):
     give no surface; every other face keeps exactly the patch it has under mode 1 (its
     stencil never reaches the boundary rules), so the surface is the non-uniform bicubic
     B-spline of the inner control points, a G1 shell."""
-    from tests.test_g1_patches import with_random_intervals
+    from tests.helpers import with_random_intervals
 
     one = with_random_intervals(jittered_grid(8, 7, mode=1), ratio, seed=5)
     zero = patching.from_arrays(one.vertices, one.quads(), intervals=dict(one.intervals), interpolate_boundary=0, name="none")
@@ -102,7 +102,7 @@ def test_mode_0_drops_the_faces_at_the_boundary_and_keeps_the_rest(ratio):
 def test_mode_0_with_an_extraordinary_point_next_to_the_boundary():
     """bipyramid-5 without one face at a pole, mode 0: the faces around the open pole give no
     surface; the rest is G1, and faces far from the opening equal the closed mesh's."""
-    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+    from tests.helpers import quad_mesh_with_eps, with_random_intervals
 
     base = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, seed=3)
     topo = patching.Topology(base)

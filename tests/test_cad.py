@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 import export
 import patching
 from patching.mesh.primitives import open_grid, torus_grid
 from tests.conftest import REPO
-from tests.test_brep import net_volume
+from tests.helpers import net_volume
+from tests.helpers import ell_mesh
 
 build123d = pytest.importorskip("build123d")
 cadquery = pytest.importorskip("cadquery")
@@ -96,22 +96,6 @@ def test_open_surface_is_a_shell_in_both_libraries():
     assert isinstance(wp.val(), cadquery.Shell) and wp.val().isValid()
 
 
-def ell_mesh() -> patching.ControlMesh:
-    """An L-shaped polycube (EPs of valence 3 and 5) whose strips carry intervals 0.5 to 3, so
-    that the angle configuration and the anchor rule change the patches."""
-    from patching.mesh.primitives import polycube
-    from patching.topology.tables import Topology
-
-    cube = polycube([(0, 0, 0), (1, 0, 0), (0, 1, 0)], 2, name="ell")
-    topo = Topology(cube)
-    intervals = {}
-    for strip in range(topo.n_strips):
-        a, b = topo.edges[int(np.flatnonzero(topo.edge_strip == strip)[0])]
-        intervals[(int(a), int(b))] = (1, 2, 0.5, 3, 1.5)[strip % 5]
-    faces = [list(cube.face(f)) for f in range(cube.n_faces)]
-    return patching.from_arrays(cube.vertices, faces, intervals=intervals, name="ell")
-
-
 def test_angles_and_anchors_reach_the_build():
     mesh = ell_mesh()
     volumes = {
@@ -124,7 +108,7 @@ def test_angles_and_anchors_reach_the_build():
 def test_build_options_reach_the_build():
     """g1_solve (and any other keyword of patching.build) passes through: every vertex of the
     cube is an EP, one cluster, where the joint and the seed's solves give different surfaces."""
-    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+    from tests.helpers import quad_mesh_with_eps, with_random_intervals
 
     mesh = with_random_intervals(quad_mesh_with_eps("cube"), 5.0, seed=0)
     joint = export.to_build123d(mesh).volume

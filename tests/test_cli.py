@@ -4,6 +4,7 @@ import os
 from pathlib import Path
 
 import pytest
+from tests.helpers import assert_refused as _assert_refused
 
 GOOD_QUADS = """v 0 0 0
 v 1 0 0
@@ -67,17 +68,6 @@ BAD_INPUTS = {
         torus_obj(extra="t corner 1/1/0 4 3\nt corner 1/1/0 4 10\n"), "vertex 4 has two corner values", "bad.obj:33 and bad.obj:34"
     ),
 }
-
-
-def _assert_refused(result, *fragments: str) -> str:
-    assert result.returncode == 2, (result.returncode, result.stderr)
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("nupatch: error: "), lines[0]
-    assert "Traceback" not in result.stderr
-    for fragment in fragments:
-        assert fragment in lines[0], (fragment, lines[0])
-    return lines[0]
 
 
 @pytest.mark.parametrize("case", sorted(BAD_INPUTS))
@@ -227,7 +217,7 @@ def test_bad_output_options_are_refused_in_one_line(tmp_path, run_cli, args, fra
 
 def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
     from export import write_obj
-    from tests.test_cad import ell_mesh
+    from tests.helpers import ell_mesh
 
     mesh = tmp_path / "ell.obj"
     write_obj(ell_mesh(), mesh)

@@ -11,27 +11,14 @@ import patching
 from patching.extraordinary import cluster_fairing
 from patching.extraordinary.anchor_fairing import thin_plate_matrices
 from patching.evaluation.sampling import normal_turning
-from patching.topology.features import features
-from patching.extraordinary.g1_patches import ep_groups
 from patching.subdivision.catmark import subdivide
 from patching.topology.tables import Topology
 from tests.conftest import shape_files
-from tests.test_g1_patches import quad_mesh_with_eps, shared_edge_normal_jumps, with_random_intervals
-from tests.test_operator_speed_equivalence import boundary_ep, reference_matrix
+from tests.helpers import quad_mesh_with_eps, shared_edge_normal_jumps, with_random_intervals
+from tests.helpers import boundary_ep, reference_matrix
+from tests.helpers import clusters_of
 
 CUBE = quad_mesh_with_eps("cube")
-
-
-def clusters_of(mesh, max_eps=None):
-    """The EP clusters build_operator solves jointly (its EPs: smooth extraordinary vertices
-    and sector vertices)."""
-    topo = Topology(mesh)
-    feats = features(topo)
-    smooth = (feats.count == 0) & ~feats.corner
-    eps = np.union1d(topo.extraordinary[smooth[topo.extraordinary]], np.flatnonzero(feats.sector_vertex))
-    groups = ep_groups(topo, eps, feats)
-    found = cluster_fairing.ep_clusters(groups, topo, max_eps)
-    return [sorted(int(groups[k].vertices[e]) for k, e in c) for c in found]
 
 
 def test_clusters_are_the_components_of_ep_ep_spokes():

@@ -14,9 +14,9 @@ from export.continuity import ContinuityReport, check_continuity
 from export.step import write_step
 
 try:
-    from tests.test_brep import cube, edges_of, seam_tube, single_patch, torus
+    from tests.helpers import cube_surface as cube, edges_of, seam_tube, single_patch, torus_surface as torus
 except ImportError:  # tests/ on sys.path rather than a package
-    from test_brep import cube, edges_of, seam_tube, single_patch, torus
+    from tests.helpers import cube_surface as cube, edges_of, seam_tube, single_patch, torus_surface as torus
 
 # Normals of C1 neighbours agree to round-off: unit normals from derivatives of size ~10
 # computed to ~1e-15 relative give angles of a few 1e-15 rad (measured 4e-15 rad = 2.5e-13

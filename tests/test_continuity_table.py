@@ -13,7 +13,7 @@ from export.brep import to_shape
 from export.continuity import check_continuity
 from export.step import write_step
 from patching.mesh.primitives import torus_grid
-from tests.test_brep import cube
+from tests.helpers import cube_surface as cube
 
 # A correct model: neighbours evaluate the same boundary polynomial and C1/G1 cross
 # derivatives, measured 2e-16 of the diagonal and 8e-13 deg on this torus; bounds ~50x.

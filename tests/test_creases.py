@@ -14,11 +14,11 @@ from OCP.TColgp import TColgp_Array1OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 import patching
-from patching.evaluation.sampling import evaluate_nets
 from patching.mesh.primitives import torus_grid
 from patching.subdivision import limit_points, subdivide
 from tests.edge_checks import edge_jumps
-from tests.test_g1_patches import shared_edge_normal_jumps
+from tests.helpers import shared_edge_normal_jumps
+from tests.helpers import distance_to_surface
 
 M, N, ROW = 8, 6, 2
 
@@ -34,21 +34,6 @@ def creased_torus(du=None, dv=None, seed=0) -> patching.ControlMesh:
     points = mesh.vertices + rng.normal(scale=0.05, size=mesh.vertices.shape)
     creases = {(idx(ROW, b), idx(ROW, b + 1)): np.inf for b in range(N)}
     return patching.from_arrays(points, mesh.quads(), intervals=dict(mesh.intervals), creases=creases, name="creased")
-
-
-def distance_to_surface(surface, q) -> float:
-    """Distance from q to the patches, by Gauss-Newton from the patch centres."""
-    nets = [net for _, _, _, net in surface.patches()]
-    centres = np.array([net.mean(axis=(0, 1)) for net in nets])
-    best = np.inf
-    for c in np.argsort(np.linalg.norm(centres - q, axis=1))[:4]:
-        st = np.array([0.5, 0.5])
-        for _ in range(30):
-            p, ds, dt = evaluate_nets(nets[c][None], st[:1], st[1:], derivatives=True)
-            jac = np.stack([ds[0, 0], dt[0, 0]], 1)
-            st = np.clip(st + np.linalg.lstsq(jac, q - p[0, 0], rcond=None)[0], 0.0, 1.0)
-        best = min(best, float(np.linalg.norm(evaluate_nets(nets[c][None], st[:1], st[1:])[0, 0] - q)))
-    return best
 
 
 def test_uniform_crease_is_catmull_clarks_crease_limit_surface():

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 import patching
 from patching.mesh.primitives import polycube
 from tests.strategies import relabelled, reversed_orientation
-from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
-from tests.test_operator import dihedral
+from tests.helpers import quad_mesh_with_eps, with_random_intervals
+from tests.helpers import dihedral
 
 # Local solves (SVD, pseudo-inverse) at ratio <= 20: a few hundred ulps of the mesh size.
 TOL = 1e-10

@@ -21,63 +21,7 @@ from patching.evaluation.sampling import (
     spoke_normal_jumps,
 )
 from patching.topology.tables import Topology
-
-
-def ep_disc(
-    n: int, intervals=None, rings: int = 3, name: str | None = None, layout: str = "knots"
-) -> patching.ControlMesh:
-    """A planar disc of quads around one EP of valence n (vertex 0), for blending functions.
-
-    Sector i (between spokes i and i+1, counter-clockwise) is a (rings + 1) x (rings + 1) grid;
-    its vertex (a, b) sits at U_i[a] e_i + U_{i+1}[b] e_{i+1}, e_i the unit vector at angle
-    2 pi i / n and U_i the partial sums of the intervals of spoke i, so the layout follows
-    the knots (layout="knots"; layout="uniform" spaces the vertices 1 apart, as a picture of a
-    control grid would, whatever the intervals).  intervals: (n, rings) knot intervals; intervals[i, j] is the strip crossing
-    spoke i at its j-th edge from the EP (j = 0 is the spoke edge d_i of the paper, j = 1 the
-    a_i of its Fig. 11).  A last ring of zero-interval strips clamps the boundary (the
-    operator builds no patch on open boundaries), so the rings x rings patches per sector hold
-    the whole support of every blending function of the EP and its 2n neighbours for
-    rings >= 3 (a cubic B-spline spans 4 intervals).
-    """
-    k = rings + 1
-    d = np.ones((n, rings)) if intervals is None else np.asarray(intervals, dtype=np.float64)
-    d = np.concatenate([d, np.zeros((n, 1))], axis=1)
-    spacing = d if layout == "knots" else np.ones_like(d)
-    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(spacing, axis=1)], axis=1)
-    ang = 2 * np.pi * np.arange(n) / n
-    e = np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
-    ids: dict[tuple, int] = {}
-    verts = [np.zeros(3)]
-
-    def vid(i: int, a: int, b: int) -> int:
-        i %= n
-        if a == 0 and b == 0:
-            return 0
-        key = ("spoke", i, a) if b == 0 else ("spoke", (i + 1) % n, b) if a == 0 else ("face", i, a, b)
-        if key not in ids:
-            ids[key] = len(verts)
-            if key[0] == "spoke":
-                verts.append(cum[key[1], key[2]] * e[key[1]])
-            else:
-                verts.append(cum[i, a] * e[i] + cum[(i + 1) % n, b] * e[(i + 1) % n])
-        return ids[key]
-
-    faces = [
-        [vid(i, a, b), vid(i, a + 1, b), vid(i, a + 1, b + 1), vid(i, a, b + 1)]
-        for i in range(n)
-        for a in range(k)
-        for b in range(k)
-    ]
-    tags = {(vid(i, j, 0), vid(i, j + 1, 0)): float(d[i, j]) for i in range(n) for j in range(k)}
-    return patching.from_arrays(np.array(verts), faces, intervals=tags, name=name or f"ep-disc-{n}")
-
-
-def lifted(mesh: patching.ControlMesh, seed: int = 0, scale: float = 0.3) -> patching.ControlMesh:
-    """The same mesh with random heights (the operator does not see positions)."""
-    rng = np.random.default_rng(seed)
-    v = mesh.vertices.copy()
-    v[:, 2] = scale * rng.normal(size=len(v))
-    return mesh.with_positions(v)
+from tests.helpers import ep_disc, lifted
 
 
 def test_disc_has_one_ep_and_one_patch_ring_per_sector_cell():
@@ -263,7 +207,7 @@ def test_report_on_a_closed_mesh_with_adjacent_eps():
     centres, each valence-3 EP next to other EPs' patches; random intervals up to 5.  Every EP
     is reported, the joins agree to round-off, the surface is G1 and every function has a
     maximum."""
-    from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+    from tests.helpers import quad_mesh_with_eps, with_random_intervals
 
     mesh = with_random_intervals(quad_mesh_with_eps("bipyramid-5"), 5.0, seed=3)
     topo = Topology(mesh)

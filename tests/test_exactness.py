@@ -24,7 +24,7 @@ from OCP.TopoDS import TopoDS
 import patching
 from export import read_step, to_step
 from patching.mesh.primitives import open_grid, torus_grid
-from tests.test_operator import dihedral
+from tests.helpers import dihedral
 
 # Relative to the mesh size: poles go through STEP as text with 15+ significant digits and
 # through two different but exact algorithms (blossoms here, knot insertion in OCC).

@@ -17,7 +17,7 @@ import patching
 from patching.errors import NupatchError
 from patching.mesh.primitives import polycube
 from tests.edge_checks import crease_deviation, edge_jumps
-from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
+from tests.helpers import quad_mesh_with_eps, with_random_intervals
 
 BASES = {
     "cube": lambda: quad_mesh_with_eps("cube"),

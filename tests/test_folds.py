@@ -9,8 +9,8 @@ from export import write_obj
 from patching.extraordinary.auxiliary_points import onward_interval
 from patching.evaluation.sampling import normal_turning
 from patching.topology.tables import Topology
-from tests.test_evaluation import ep_disc
-from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, with_random_intervals
+from tests.helpers import ep_disc
+from tests.helpers import CUBE_FACES, CUBE_VERTICES, with_random_intervals
 
 CUBE = patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
 #: no two neighbouring samples of a smooth patch turn by more than this (cos 60 degrees);

@@ -7,9 +7,7 @@ import struct
 
 import numpy as np
 import pytest
-from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
-from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepTools import BRepTools
 from OCP.GeomLProp import GeomLProp_SLProps
@@ -28,6 +26,7 @@ from export.formats import FORMATS, format_of, tessellate, write
 from export.step import read_step
 from patching.errors import OutputError
 from patching.mesh.primitives import open_grid, torus_grid
+from tests.helpers import exact_box
 
 TESSELLATED = ("stl", "glb", "obj")
 EXACT = ("step", "iges", "brep")
@@ -43,14 +42,6 @@ def faces_of(shape) -> list:
     faces = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_FACE, faces)
     return [TopoDS.Face_s(faces.FindKey(i)) for i in range(1, faces.Extent() + 1)]
-
-
-def exact_box(shape) -> np.ndarray:
-    """(2, 3) bounding box of the exact surfaces (not of poles, not enlarged by tolerances)."""
-    box = Bnd_Box()
-    BRepBndLib.AddOptimal_s(shape, box, False, False)
-    x0, y0, z0, x1, y1, z1 = box.Get()
-    return np.array([[x0, y0, z0], [x1, y1, z1]])
 
 
 def read_glb(path):
@@ -159,7 +150,7 @@ def test_every_format_write_is_atomic(tmp_path, ring, monkeypatch, fmt):
 @pytest.fixture(scope="module")
 def ell():
     """An EP model: bicubic and bi-quintic patches (two groups, rows offset)."""
-    from tests.test_cad import ell_mesh
+    from tests.helpers import ell_mesh
 
     surface = patching.build(ell_mesh())
     assert [g.degree for g in surface.groups] == [3, 5]

@@ -77,7 +77,7 @@ def test_random_small_meshes_build_or_raise_the_error_family(data):
 
 def _bases():
     from patching.mesh.primitives import polycube, torus_grid
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     pyramid = patching.from_arrays(
         np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0]]),
@@ -142,7 +142,7 @@ def test_a_mesh_where_no_face_gives_a_patch_is_refused_in_one_line():
     import pytest
 
     from patching.mesh.primitives import open_grid
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     grid = open_grid(4, 3)
     cube = quad_mesh_with_eps("cube")
@@ -166,7 +166,7 @@ def test_a_small_mesh_far_from_the_origin_is_refused_in_one_line_not_a_brep_bug(
 
     from export import to_shape
     from export.pack import patch_spans, to_packed_shape
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     cube = quad_mesh_with_eps("cube")
     near = cube.with_positions(cube.vertices + 1e7)
@@ -187,7 +187,7 @@ def test_huge_coordinates_are_refused_in_one_line_naming_the_vertex(tmp_path):
 
     from export.formats import write
     from patching.mesh.control_mesh import MAX_COORDINATE
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     cube = quad_mesh_with_eps("cube")
     faces = cube.quads()
@@ -266,7 +266,7 @@ def test_too_many_subdivision_steps_are_refused_before_any_work():
     import pytest
 
     from patching.subdivision.catmark import MAX_SUBDIVIDE_FACES, subdivide
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     cube = quad_mesh_with_eps("cube")
     with pytest.raises(patching.UnsupportedError, match="take fewer steps") as info:

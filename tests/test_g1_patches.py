@@ -6,73 +6,13 @@ import pytest
 
 import patching
 from patching.bernstein import elevation_matrix
-from patching.evaluation.sampling import evaluate_nets
 from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
 from patching.extraordinary.g1_patches import blue_weights, local_index
 from patching.mesh.primitives import torus_grid
 from patching.subdivision.catmark import subdivide
 from patching.topology.tables import Topology
 from tests.conftest import SHAPES
-
-
-CUBE_VERTICES = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
-CUBE_FACES = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-
-
-def quad_mesh_with_eps(kind: str) -> patching.ControlMesh:
-    """Closed all-quad meshes with EPs: one Catmull-Clark step of small polyhedra."""
-    if kind == "cube":
-        return patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
-    n = int(kind.split("-")[1])  # bipyramid-n: apexes of valence n after one step
-    ang = 2 * np.pi * np.arange(n) / n
-    v = np.vstack([np.stack([np.cos(ang), np.sin(ang), 0 * ang], 1), [[0, 0, 1.3], [0, 0, -1.3]]])
-    f = [[i, (i + 1) % n, n] for i in range(n)] + [[(i + 1) % n, i, n + 1] for i in range(n)]
-    tri = patching.from_arrays(v, f, name=kind)
-    return subdivide(tri, 1, rules="opensubdiv")
-
-
-def with_random_intervals(mesh: patching.ControlMesh, ratio: float, seed: int) -> patching.ControlMesh:
-    """The same mesh and tags with strip intervals drawn uniformly from [1, ratio]."""
-    topo = Topology(mesh)
-    rng = np.random.default_rng(seed)
-    values = rng.uniform(1.0, ratio, topo.n_strips)
-    first = np.unique(topo.edge_strip, return_index=True)[1]
-    iv = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
-    faces = [list(mesh.face(i)) for i in range(mesh.n_faces)]
-    return patching.from_arrays(
-        mesh.vertices, faces, intervals=iv, creases=dict(mesh.creases), corners=dict(mesh.corners),
-        holes=sorted(mesh.holes), interpolate_boundary=mesh.interpolate_boundary, name=mesh.name,
-    )
-
-
-def shared_edge_normal_jumps(surface, samples: int = 7, skip=()) -> tuple[float, float]:
-    """Largest normal angle (degrees) and gap along every shared edge, evaluated with numpy:
-    a second implementation beside export.continuity (OpenCASCADE).  skip: edge ids (of the
-    patch topology) left out of the angle, e.g. sharp edges."""
-    topo = surface.topology
-    nets = [net for _, _, _, net in surface.patches()]
-    uses: dict[int, list[tuple[int, int]]] = {}
-    for row in range(topo.side_edge.shape[0]):
-        for side in range(4):
-            uses.setdefault(int(topo.side_edge[row, side]), []).append((row, side))
-    w = np.linspace(0.02, 0.98, samples)
-    worst_angle, worst_gap = 0.0, 0.0
-    for e, pair in uses.items():
-        if len(pair) != 2:
-            continue
-        values = []
-        for row, side in pair:
-            u = 1 - w if topo.side_reversed[row, side] else w
-            s, t = {0: (u, 0 * u), 1: (1 + 0 * u, u), 2: (1 - u, 1 + 0 * u), 3: (0 * u, 1 - u)}[side]
-            p, ds, dt = evaluate_nets(nets[row][None], s, t, derivatives=True)
-            n = np.cross(ds[0], dt[0])
-            values.append((p[0], n / np.linalg.norm(n, axis=1, keepdims=True)))
-        (p1, n1), (p2, n2) = values
-        worst_gap = max(worst_gap, float(np.abs(p1 - p2).max()))
-        angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(n1, n2), axis=1), (n1 * n2).sum(1)))
-        if e not in skip:
-            worst_angle = max(worst_angle, float(angle.max()))
-    return worst_angle, worst_gap
+from tests.helpers import CUBE_FACES, CUBE_VERTICES, quad_mesh_with_eps, shared_edge_normal_jumps, with_random_intervals
 
 
 MESHES = ["cube", "bipyramid-3", "bipyramid-5", "bipyramid-6", "bipyramid-7", "bipyramid-8"]

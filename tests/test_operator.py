@@ -11,17 +11,10 @@ from hypothesis import strategies as st
 from patching import build_operator
 from patching.mesh.primitives import open_grid, torus_grid
 from tests.strategies import relabelled, reversed_orientation, torus_meshes
+from tests.helpers import dihedral
 
 # Affine combinations of O(1) numbers: round-off is a few ulps times the number of terms (16).
 ROUND_OFF = 1e-13
-
-
-def dihedral(net: np.ndarray):
-    """The 8 re-parametrisations of a square net (rotations and reflections)."""
-    for k in range(4):
-        r = np.rot90(net, k, axes=(0, 1))
-        yield r
-        yield r.transpose(1, 0, 2)
 
 
 @settings(max_examples=40, deadline=None)

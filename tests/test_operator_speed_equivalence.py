@@ -12,80 +12,15 @@ import numpy as np
 import pytest
 
 import patching
-from patching.extraordinary.anchor_fairing import faired_anchors
-from patching.extraordinary.auxiliary_points import anchor_matrix
-from patching.bernstein import elevation_matrix_2d
-from patching.extraordinary.extraction import cubic_extraction
-from patching.topology.features import features
-from patching.extraordinary.g1_patches import G1Assembly, RowMixer, _green_weights, _red_operator, ep_groups
-from patching.operator.assembly import _sector_anchors
+from patching.extraordinary.g1_patches import _green_weights, _red_operator
 from patching.mesh.primitives import torus_grid
 from patching.topology.tables import Topology
-from tests.test_g1_patches import quad_mesh_with_eps, with_random_intervals
-from tests.test_sharp_features import meridian_crease
+from tests.helpers import quad_mesh_with_eps, with_random_intervals
+from tests.helpers import meridian_crease
+from tests.helpers import boundary_ep, reference_matrix
 
 # Sums of a few hundred products of O(1) weights, in another order than the fast path's.
 RELATIVE = 1e-13
-
-
-def reference_matrix(
-    mesh, angles="optimized", anchors="eigen-polyhedron", force=(), interior="extraction", g1_steps=("red", "black", "green")
-) -> np.ndarray:
-    """Dense M of ``g1_solve="seed"``: every irregular face's 16 extraction rows degree-elevated
-    one face at a time, the G1 steps (red, black, green, and blue for
-    interior="cubic-isocurves") applied to those rows in turn (a target row = its weights times
-    the previous step's source rows), the anchors replaced by their rows over control points.
-    g1_steps=(): the degree-elevated extraction itself."""
-    topo = Topology(mesh)
-    feats = features(topo)
-    spans = topo.face_spans
-    has_patch = np.all(spans > 0, axis=1)
-    has_patch[list(mesh.holes)] = False
-    smooth = (feats.count == 0) & ~feats.corner
-    eps = np.union1d(topo.extraordinary[smooth[topo.extraordinary]], np.asarray(force, dtype=np.int64))
-    eps = np.union1d(eps, np.flatnonzero(feats.sector_vertex))
-    is_ep = np.zeros(topo.n_vertices, dtype=bool)
-    is_ep[eps] = True
-    ext = cubic_extraction(topo, is_ep, sharp_edge=feats.sharp, corner_vertex=feats.corner)
-    n = ext.n_points
-    nets = ext.nets.toarray()
-    irregular = is_ep[mesh.quads()].any(axis=1)
-    cubic = [f for f in range(mesh.n_faces) if has_patch[f] and not irregular[f]]
-    quintic = [f for f in range(mesh.n_faces) if has_patch[f] and irregular[f]]
-    all_irregular = np.flatnonzero(irregular)
-    face_row = np.full(mesh.n_faces, -1, dtype=np.int64)
-    face_row[all_irregular] = 36 * np.arange(all_irregular.size)
-    elevate = elevation_matrix_2d(3, 5)
-    rows = np.vstack([elevate @ nets[16 * f : 16 * f + 16] for f in all_irregular] or [np.zeros((0, nets.shape[1]))])
-    groups = ep_groups(topo, eps, feats)
-    anchor_rows = np.zeros((ext.n_anchors, n))
-    if quintic:
-        g1 = G1Assembly(topo, groups, face_row, angles)
-        for step in [getattr(g1, name) for name in g1_steps] + ([g1.blue] if interior == "cubic-isocurves" else []):
-            mixer = RowMixer(rows.shape[0])
-            step(mixer)
-            new = rows.copy()
-            for targets, _, _ in mixer.blocks:
-                new[targets.ravel()] = 0.0
-            for targets, sources, weights in mixer.blocks:
-                for e in range(targets.shape[0]):
-                    for t in range(targets.shape[1]):
-                        new[targets[e, t]] += weights[e, t] @ rows[sources[e]]
-            rows = new
-        rule = "eigen-polyhedron" if anchors == "faired" else anchors
-        smooth_groups = [g for g in groups if g.theta is None]
-        anchor_rows = anchor_matrix(topo, smooth_groups, ext.anchor_column, n, rule=rule).toarray()
-        anchor_rows += _sector_anchors(topo, feats, groups, ext.anchor_column, n).toarray()
-    blocks = [nets[16 * f : 16 * f + 16] for f in cubic] + [rows[face_row[f] : face_row[f] + 36] for f in quintic]
-    stacked = np.vstack(blocks)
-    if anchors == "faired" and ext.n_anchors:
-        import scipy.sparse as sp
-
-        degrees = np.array([3] * len(cubic) + [5] * len(quintic))
-        sets = [ext.anchor_column[g.h[e]] - n for g in groups if g.theta is None for e in range(len(g.vertices))]
-        faired = faired_anchors(sp.csr_matrix(stacked), n, sp.csr_matrix(anchor_rows), sets, degrees, spans[cubic + quintic])
-        anchor_rows = faired.toarray()
-    return stacked[:, :n] + stacked[:, n:] @ anchor_rows
 
 
 def with_hole_at_an_ep() -> patching.ControlMesh:
@@ -97,15 +32,6 @@ def with_hole_at_an_ep() -> patching.ControlMesh:
     hole = int(topo.face[topo.outgoing[pole]])
     faces = [list(mesh.face(f)) for f in range(mesh.n_faces)]
     return patching.from_arrays(mesh.vertices, faces, intervals=dict(mesh.intervals), holes=[hole], name="hole")
-
-
-def boundary_ep(mode: int) -> patching.ControlMesh:
-    """bipyramid-5 without one face at a pole: a boundary EP of valence 5 (a ring with a gap)."""
-    base = quad_mesh_with_eps("bipyramid-5")
-    topo = Topology(base)
-    drop = int(topo.face[topo.outgoing[base.n_vertices - 2]])
-    faces = [list(base.face(f)) for f in range(base.n_faces) if f != drop]
-    return with_random_intervals(patching.from_arrays(base.vertices, faces, interpolate_boundary=mode, name="open"), 5.0, seed=7)
 
 
 CASES = {
@@ -141,7 +67,7 @@ def test_joint_solve_changes_only_the_patches_of_ep_clusters(case):
     """g1_solve="joint" (the default) only acts on clusters of EPs joined by spokes
     (``cluster_fairing``): M's rows of every other patch are the seed's (to round-off: the
     steps of the EPs outside clusters are composed as other sparse matrices)."""
-    from tests.test_cluster_fairing import clusters_of
+    from tests.helpers import clusters_of
 
     mesh, options = CASES[case]()
     op = patching.build_operator(mesh, **options)

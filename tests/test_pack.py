@@ -18,8 +18,8 @@ from export.pack import patch_spans, to_packed_shape
 from export.step import read_step
 from patching.evaluation.sampling import evaluate_nets
 from patching.mesh.primitives import open_grid, torus_grid
-from tests.test_brep import net_volume
-from tests.test_cad import ell_mesh
+from tests.helpers import net_volume
+from tests.helpers import ell_mesh
 
 # The packed face against the patches: the same polynomials, one re-expressed by knot
 # removal; measured 2e-16 to 4.4e-16 of the size, so 1e-14 (25x; the issue asks 1e-12).
@@ -118,7 +118,7 @@ def test_cli_pack_writes_fewer_faces_with_the_same_box(tmp_path, run_cli):
     assert result.returncode == 0, result.stderr
     a, b = read_step(plain), read_step(packed)
     assert (len(faces_of(a)), len(faces_of(b))) == (88, 4)
-    from tests.test_formats import exact_box
+    from tests.helpers import exact_box
 
     np.testing.assert_allclose(exact_box(b), exact_box(a), atol=1e-9)
     assert packed.stat().st_size < plain.stat().st_size / 3
@@ -146,7 +146,7 @@ def test_inside_out_mesh_gives_a_positive_solid():
 def test_pack_refuses_degenerate_geometry_as_build_does(tmp_path, run_cli, name, positions, message):
     """A cube collapsed to a point or a plane is refused by ``build`` (test_cli); with --pack
     it was written (exit 0): to_packed_shape skipped to_shape's input checks."""
-    from tests.test_cli import _assert_refused
+    from tests.helpers import assert_refused as _assert_refused
 
     mesh = tmp_path / f"{name}.obj"
     faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
@@ -174,7 +174,7 @@ def test_no_packed_face_meets_itself():
     block's sides 0 and 2 met each other along 46 edges, each then a seam of that one
     non-periodic face (valid to BRepCheck, but not the seamless faces the module promises).
     No boundary side of a block may face a patch of the same block."""
-    from tests.test_brep import edges_of
+    from tests.helpers import edges_of
 
     mesh = twisted_torus()
     surface = patching.build(mesh)

@@ -67,7 +67,7 @@ def test_builds_run_their_small_dense_solves_on_one_blas_thread(monkeypatch):
     import patching
     from patching.extraordinary import g1_patches
     from patching.subdivision import catmark as subdivision
-    from tests.test_g1_patches import quad_mesh_with_eps
+    from tests.helpers import quad_mesh_with_eps
 
     seen = []
     angles = g1_patches.angle_configuration

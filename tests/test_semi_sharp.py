@@ -6,7 +6,7 @@ from scipy.spatial import cKDTree
 
 import patching
 from patching.evaluation.sampling import sample_surface
-from tests.test_g1_patches import shared_edge_normal_jumps
+from tests.helpers import shared_edge_normal_jumps
 
 CUBE_V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 CUBE_F = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
@@ -80,7 +80,7 @@ def test_a_small_mesh_with_a_sharpness_5_crease_is_refined_adaptively():
     T-junctions, pointwise the global construction's surface (test_adaptive's check, against
     refinement="global"), which "global" still gives in one mesh (what --pack takes)."""
     from patching.operator.adaptive import adaptive_operator
-    from tests.test_adaptive import TOL, surface_differences
+    from tests.helpers import TOL, surface_differences
 
     mesh = crease_torus(5.0)
     surface = patching.build(mesh)

@@ -15,7 +15,7 @@ from patching.topology.features import features
 from tests.conftest import shape_files
 from patching.operator import patched_mesh
 from tests.edge_checks import brep_smooth_jump, crease_deviation, edge_jumps
-from tests.test_g1_patches import with_random_intervals
+from tests.helpers import with_random_intervals
 
 SHAPES = shape_files("catmark_")
 

@@ -12,7 +12,8 @@ from patching.topology.features import features
 from patching.subdivision.catmark import subdivide
 from patching.topology.tables import Topology
 from tests.edge_checks import crease_deviation, edge_jumps
-from tests.test_g1_patches import CUBE_FACES, CUBE_VERTICES, quad_mesh_with_eps, with_random_intervals
+from tests.helpers import CUBE_FACES, CUBE_VERTICES, quad_mesh_with_eps, with_random_intervals
+from tests.helpers import meridian_crease
 
 
 def assert_g1_with_exact_creases(mesh, surface, angle_deg=1e-7):
@@ -81,27 +82,6 @@ def test_refined_sharp_cube_with_non_uniform_intervals_is_still_the_cube():
         area += float((np.linalg.norm(np.cross(ds[0], dt[0]), axis=1) * ww).sum())
     assert area == pytest.approx(6.0, abs=1e-12)
     assert_g1_with_exact_creases(mesh, surface)
-
-
-def neighbours(topo: Topology, v: int) -> set:
-    return {int(x) for e in topo.edges[(topo.edges == v).any(axis=1)] for x in e} - {v}
-
-
-def meridian_crease(n: int, i: int, j: int, ratio: float, seed: int = 0, corners=None) -> patching.ControlMesh:
-    """bipyramid-n after one Catmull-Clark step (two poles of valence n), with a closed crease
-    down meridian i and up meridian j: both poles are crease EPs with sectors of j - i and
-    n - (j - i) faces."""
-    base = quad_mesh_with_eps(f"bipyramid-{n}")
-    topo = Topology(base)
-    first = base.n_vertices - (n + 2)  # the refinement lists the original vertices last
-    top, bottom, i, j = first + n, first + n + 1, first + i, first + j
-    loop = []
-    for a, b in ((top, i), (i, bottom), (bottom, j), (j, top)):
-        (mid,) = neighbours(topo, a) & neighbours(topo, b)
-        loop += [a, mid]
-    creases = {(loop[k], loop[(k + 1) % len(loop)]): np.inf for k in range(len(loop))}
-    mesh = patching.from_arrays(base.vertices, base.quads(), creases=creases, corners=corners or {}, name="meridians")
-    return with_random_intervals(mesh, ratio, seed) if ratio > 1 else mesh
 
 
 @pytest.mark.parametrize("n, i, j", [(5, 0, 2), (6, 0, 3), (6, 0, 2), (3, 0, 1), (8, 1, 4)])

@@ -32,9 +32,9 @@ from patching.operator.split_sides import split_side_topology
 from patching.surface import CORNER_PARAMETERS, BezierSurface, PatchGroup
 
 try:
-    from tests.test_brep import count, topology_from_quads, volume
+    from tests.helpers import count, topology_from_quads, volume
 except ImportError:  # tests/ on sys.path rather than a package
-    from test_brep import count, topology_from_quads, volume
+    from tests.helpers import count, topology_from_quads, volume
 
 # The split patches are the coarse ones to round-off (de Casteljau on coordinates of size ~4:
 # a few ulps): measured 2e-16 of the size; 1e-14 leaves a factor 50.
@@ -332,7 +332,7 @@ def adaptive_cases():
     """Meshes of tests/test_adaptive.py: a closed torus with random intervals and semi-sharp
     edges, a torus with two triangles (bi-quintic patches beside the T-junctions), an open
     bumped grid with semi-sharp edges and a corner tag (a shell)."""
-    from tests.test_adaptive import CASES
+    from tests.helpers import CASES
 
     return [(name, mesh) for name, mesh in CASES if name in ("torus_random", "torus_triangles", "grid_uniform")]
 

@@ -17,9 +17,9 @@ from export.step import StepError, read_step, write_step
 from patching.errors import InputFileError, NupatchError, OutputError
 
 try:
-    from tests.test_brep import count, cube, torus, volume
+    from tests.helpers import count, cube_surface as cube, torus_surface as torus, volume
 except ImportError:  # tests/ on sys.path rather than a package
-    from test_brep import count, cube, torus, volume
+    from tests.helpers import count, cube_surface as cube, torus_surface as torus, volume
 
 FILE_NAME = re.compile(r"FILE_NAME\(.*?\);", re.DOTALL)
 

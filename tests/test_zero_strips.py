@@ -19,7 +19,7 @@ from patching.rules.eigen_polyhedron import BilinearError
 from patching.errors import KnotError, UnsupportedError
 from patching.evaluation.sampling import evaluate_nets
 from patching.rules.catmark import CORNER, CREASE, DART, tagged_rules_batch
-from tests.test_adaptive import torus
+from tests.helpers import torus_mesh as torus
 
 M, N = 12, 10  # torus(12, 10): vertex (i, k) is 10 i + k, face (i, k) is [10 i + k, 10 (i + 1) + k, ...]
 V, F, _ = torus(M, N)

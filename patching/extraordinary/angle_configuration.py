@@ -129,14 +129,13 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import least_squares
 
-try:  # patching/errors.py defines the project's exception family.
-    from patching.errors import KnotError, TagError
-except ImportError:  # pragma: no cover - only while errors.py did not exist yet
-    KnotError = TagError = ValueError  # type: ignore[misc,assignment]
+from patching.errors import KnotError, TagError
+from patching.options import ANGLES
 
 __all__ = ["AngleConfiguration", "angle_configuration", "MODES"]
 
-MODES = ("optimized", "default", "uniform")
+#: The angle configurations: the choices of ``BuildOptions.angles``, defined in ``patching.options``.
+MODES = ANGLES
 _TWO_PI = 2.0 * math.pi
 _ANGLE_TOL = 1e-11  # outer-iteration stop: largest angle change (rad)
 _BAD = 1e6  # residual for a rejected step (an angle outside (0, pi))

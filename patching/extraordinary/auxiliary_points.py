@@ -43,6 +43,7 @@ import scipy.sparse as sp
 
 from patching.rules.eigen_polyhedron import limit_point_weights, tangent_projector
 from patching.topology.tables import Topology
+from patching.util.sparse_rows import TripletRows
 
 __all__ = ["RULES", "anchor_weights", "anchor_matrix", "onward_interval", "vertex_point_weights"]
 
@@ -154,7 +155,7 @@ def anchor_matrix(
     groups: ``g1_patches.EPGroup`` per valence; weights are computed once per distinct
     (intervals, onward intervals) configuration."""
     n_anchors = int(np.count_nonzero(anchor_column >= 0))
-    rows, cols, vals = [], [], []
+    triplets = TripletRows()
     inner = ~topo.vertex_is_boundary & (topo.valence >= 3)
     for g in groups:
         h = g.h
@@ -167,13 +168,5 @@ def anchor_matrix(
         weights = table[inverse.ravel()]  # (E, n, 2n+1)
         ids = np.concatenate([g.vertices[:, None], ends, far_corner], axis=1)  # (E, 2n+1)
         anchor_rows = anchor_column[h] - n_points  # (E, n)
-        rows.append(np.broadcast_to(anchor_rows[:, :, None], weights.shape).ravel())
-        cols.append(np.broadcast_to(ids[:, None, :], weights.shape).ravel())
-        vals.append(weights.ravel())
-    if not rows:
-        return sp.csr_matrix((n_anchors, n_points))
-    out = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_anchors, n_points)
-    )
-    out.sum_duplicates()
-    return out
+        triplets.add(anchor_rows[:, :, None], ids[:, None, :], weights)
+    return triplets.matrix((n_anchors, n_points))

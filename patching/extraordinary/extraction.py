@@ -52,6 +52,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from patching.topology.tables import Topology
+from patching.util.sparse_rows import TripletRows
 
 __all__ = ["CubicExtraction", "cubic_extraction", "regular_face_points"]
 
@@ -87,8 +88,8 @@ class CubicExtraction:
     n_anchors: int
 
 
-def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.ndarray, sharp_edge: np.ndarray):
-    """(rows, cols, weights) of FP[h] for every half-edge h of every quad face."""
+def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.ndarray, sharp_edge: np.ndarray) -> TripletRows:
+    """The triplets of FP[h] for every half-edge h of every quad face."""
     offsets = topo.mesh.face_offsets
     base = offsets[:-1]
     h = base[:, None] + np.arange(4)[None, :]  # (f, 4) half-edges h_k
@@ -114,14 +115,11 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
     def idx(k):
         return np.arange(4)[(k % 4)]
 
-    rows, cols, vals = [], [], []
+    triplets = TripletRows()
 
     def add(mask, target_k, column, weight):
-        if not np.any(mask):
-            return
-        rows.append(h[mask, target_k])
-        cols.append(column[mask])
-        vals.append(np.broadcast_to(weight, mask.shape)[mask])
+        if np.any(mask):
+            triplets.add(h[mask, target_k], column[mask], np.broadcast_to(weight, mask.shape)[mask])
 
     for k in range(4):
         kp, km, ko = (k + 1) % 4, (k + 3) % 4, (k + 2) % 4
@@ -173,7 +171,7 @@ def _face_point_triplets(topo: Topology, is_ep: np.ndarray, anchor_column: np.nd
         add(regular, k, col(1), alpha * (1 - gamma))
         add(regular, k, col(2), alpha * gamma)
         add(regular, k, col(3), (1 - alpha) * gamma)
-    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    return triplets
 
 
 def _crease_neighbour_intervals(topo: Topology, hs: np.ndarray, sharp_edge: np.ndarray, corner_vertex: np.ndarray):
@@ -202,8 +200,7 @@ def regular_face_points(topo: Topology, sharp_edge: np.ndarray) -> sp.csr_matrix
     sector at a sharp vertex are these points (``operator``)."""
     none = np.zeros(topo.n_vertices, dtype=bool)
     no_anchor = np.full(topo.origin.size, -1, dtype=np.int64)
-    r, c, w = _face_point_triplets(topo, none, no_anchor, sharp_edge)
-    return sp.csr_matrix((w, (r, c)), shape=(topo.origin.size, topo.n_vertices))
+    return _face_point_triplets(topo, none, no_anchor, sharp_edge).matrix((topo.origin.size, topo.n_vertices))
 
 
 def cubic_extraction(
@@ -238,8 +235,7 @@ def cubic_extraction(
         sharp_edge = np.zeros(topo.n_edges, dtype=bool)
     if corner_vertex is None:
         corner_vertex = np.zeros(n, dtype=bool)
-    r, c, w = _face_point_triplets(topo, is_ep, anchor_column, sharp_edge)
-    fp = sp.csr_matrix((w, (r, c)), shape=(n_he, columns))
+    fp = _face_point_triplets(topo, is_ep, anchor_column, sharp_edge).matrix((n_he, columns))
 
     iv = topo.halfedge_interval
     twin = topo.twin

@@ -139,7 +139,8 @@ from patching.rules.catmark import (
     tagged_rules_batch,
 )
 from patching.subdivision.child_mesh import _child_mesh
-from patching.subdivision.context import _Context, _Level, _Rows, _decrement
+from patching.subdivision.context import _Context, _Level, _decrement
+from patching.util.sparse_rows import TripletRows
 
 __all__ = [
     "subdivide",
@@ -167,7 +168,7 @@ def rules_tag(rules: str) -> str:
 # Rows
 
 
-def _face_rows(ctx: _Context, rows: _Rows, faces_mask: np.ndarray) -> None:
+def _face_rows(ctx: _Context, rows: TripletRows, faces_mask: np.ndarray) -> None:
     """Face points: centroid (uniform, non-quads) or the tensor product of the curve edge rules
     (non-uniform quads: the bilinear form of [TLC] eq. 18 with knot-insertion weights)."""
     h = np.flatnonzero(faces_mask[ctx.face])
@@ -196,7 +197,7 @@ def _face_rows(ctx: _Context, rows: _Rows, faces_mask: np.ndarray) -> None:
     rows.add(f, o[h3], a_left * b_top)
 
 
-def _cc_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray) -> None:
+def _cc_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray) -> None:
     """Catmull-Clark's smooth edge point (a + b + F_0 + F_1) / 4 (face points as centroids)."""
     if e.size == 0:
         return
@@ -211,7 +212,7 @@ def _cc_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray) 
     rows.add(ctx.nf + ctx.eoh[ph], ctx.origin[php], sc[ctx.eoh[ph]] * 0.25 / ctx.ksize[ph])
 
 
-def _tensor_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray) -> None:
+def _tensor_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray) -> None:
     """Non-uniform smooth edge point between two quads: the curve edge rule along the edge times
     the curve vertex rule across it (midpoint knot insertion)."""
     if e.size == 0:
@@ -233,7 +234,7 @@ def _tensor_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarr
     rows.add(row, z, scale * wb * w_g)
 
 
-def _blz_edge_correction(ctx: _Context, rows: _Rows, lev: _Level, e: np.ndarray, scale) -> None:
+def _blz_edge_correction(ctx: _Context, rows: TripletRows, lev: _Level, e: np.ndarray, scale) -> None:
     """BLZ's modification next to tagged vertices, as a correction of the standard rule:
     ``(3/8 - gamma)(tagged end - other end)`` (mean of the two when both ends are tagged)."""
     if e.size == 0:
@@ -251,7 +252,7 @@ def _blz_edge_correction(ctx: _Context, rows: _Rows, lev: _Level, e: np.ndarray,
     rows.add(row, b, -corr)
 
 
-def _sharp_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarray, seed: bool) -> None:
+def _sharp_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray, seed: bool) -> None:
     """Crease edge point: midpoint (uniform), or the curve edge rule along the crease curve."""
     if e.size == 0:
         return
@@ -267,7 +268,7 @@ def _sharp_edge_rows(ctx: _Context, rows: _Rows, e: np.ndarray, scale: np.ndarra
     rows.add(row, b, wb * scale)
 
 
-def _cc_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+def _cc_vertex_rows(ctx: _Context, rows: TripletRows, v: np.ndarray, scale: np.ndarray) -> None:
     """Catmull-Clark smooth vertex: (n-2)/n V + (sum of edge neighbours + sum of face points)/n^2."""
     if v.size == 0:
         return
@@ -288,7 +289,7 @@ def _cc_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray
     rows.add(ctx.nf + ctx.ne + o, ctx.origin[php], sc[o] / (nn**2 * ctx.ksize[ph]))
 
 
-def _tensor_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+def _tensor_vertex_rows(ctx: _Context, rows: TripletRows, v: np.ndarray, scale: np.ndarray) -> None:
     """Non-uniform regular vertex (valence 4, quads): product of the curve vertex rules along the
     two lines of spokes 0-2 and 1-3."""
     if v.size == 0:
@@ -316,7 +317,7 @@ def _tensor_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.nda
     rows.add(row, F[3], scale * pA * mB)
 
 
-def _crease_vertex_rows(ctx: _Context, rows: _Rows, lev: _Level, v: np.ndarray, scale, seed: bool) -> None:
+def _crease_vertex_rows(ctx: _Context, rows: TripletRows, lev: _Level, v: np.ndarray, scale, seed: bool) -> None:
     """Crease vertex: 3/4 V + 1/8 (ends) uniform; the curve vertex rule along the crease curve
     ([TLC] eq. 11) for non-uniform intervals."""
     if v.size == 0:
@@ -358,7 +359,7 @@ class _Claims:
         rows = [b[0] for b in self.blocks]
         return np.bincount(np.concatenate(rows), minlength=self.n_out) if rows else np.zeros(self.n_out, np.int64)
 
-    def emit(self, out: _Rows) -> None:
+    def emit(self, out: TripletRows) -> None:
         for rows, cols, weights in self.blocks:
             out.add(rows[:, None], cols, weights / self.count[rows][:, None])
 
@@ -525,7 +526,7 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
         _refuse_nonuniform(ctx)
     nonuniform = not ctx.uniform
     par = ctx.parent
-    rows = _Rows()
+    rows = TripletRows()
     n_out = ctx.nf + ctx.ne + ctx.nv
 
     # Extraordinary points handled by the eigen-polyhedron (non-uniform only).
@@ -609,7 +610,7 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     return rows.matrix((n_out, ctx.nv))
 
 
-def _lfs_vertex_rows(ctx: _Context, rows: _Rows, v: np.ndarray, scale: np.ndarray) -> None:
+def _lfs_vertex_rows(ctx: _Context, rows: TripletRows, v: np.ndarray, scale: np.ndarray) -> None:
     """[LFS16]'s vertex rule (``eigen_polyhedron.vertex_rule_weights``) for smooth vertices of
     valence != 4 that no EP solve claimed: a semi-sharp vertex whose tags fade this step, an
     interior vertex of valence 2 (Catmull-Clark's mask there, module docstring)."""

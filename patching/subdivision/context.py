@@ -1,5 +1,5 @@
 """What one Catmull-Clark step reads of the parent mesh: topology, knot intervals and
-sharpness levels gathered into arrays (``_Context``), and the triplet rows of S (``_Rows``).
+sharpness levels gathered into arrays (``_Context``), and the triplet rows of S (``TripletRows``).
 Shared by the modules of ``subdivision`` only."""
 
 from __future__ import annotations
@@ -54,32 +54,6 @@ def _chaikin(es: np.ndarray, edges: np.ndarray, nv: int) -> np.ndarray:
         ch = 0.75 * finite + 0.25 * others - 1.0
         out[:, k] = np.where(semi & (c > 1), np.where(ch > 0, ch, 0.0), _decrement(es))
     return out
-
-
-class _Rows:
-    """COO triplets of S, gathered rule by rule."""
-
-    def __init__(self) -> None:
-        self.r: list[np.ndarray] = []
-        self.c: list[np.ndarray] = []
-        self.v: list[np.ndarray] = []
-
-    def add(self, rows, cols, vals) -> None:
-        rows, cols, vals = np.broadcast_arrays(
-            np.asarray(rows, np.int64), np.asarray(cols, np.int64), np.asarray(vals, np.float64)
-        )
-        self.r.append(rows.ravel())
-        self.c.append(cols.ravel())
-        self.v.append(vals.ravel())
-
-    def matrix(self, shape) -> sp.csr_matrix:
-        r = np.concatenate(self.r) if self.r else np.zeros(0, np.int64)
-        c = np.concatenate(self.c) if self.c else np.zeros(0, np.int64)
-        v = np.concatenate(self.v) if self.v else np.zeros(0)
-        m = sp.csr_matrix((v, (r, c)), shape=shape)
-        m.sum_duplicates()
-        m.eliminate_zeros()
-        return m
 
 
 @dataclass

@@ -21,7 +21,8 @@ from patching.rules.catmark import (
 
 from patching.subdivision.catmark import _check_options, _operator
 from patching.subdivision.child_mesh import _child_mesh
-from patching.subdivision.context import _Context, _Rows
+from patching.subdivision.context import _Context
+from patching.util.sparse_rows import TripletRows
 
 __all__ = ["limit_operator", "limit_points", "limit_tangents", "MAX_LIMIT_STEPS", "MAX_LIMIT_FACES"]
 
@@ -72,7 +73,7 @@ def _local_masks(ctx: _Context, ids: np.ndarray, rules: str, angles: str, tangen
 
     lev = ctx.parent
     rule = lev.rule[ids]
-    out = [_Rows(), _Rows(), _Rows()]
+    out = [TripletRows(), TripletRows(), TripletRows()]
     undefined = np.zeros((ids.size, 2), bool)
     k = np.arange(ids.size)
 
