@@ -181,3 +181,17 @@ def test_the_graph_sees_every_module(package):
     found = [m for m in modules() if m.startswith(package)]
     assert len(found) >= (20 if package == "patching" else 10)
     assert any(graph()[m] for m in found)
+
+
+def test_the_package_metadata_ships_every_sub_package():
+    """pyproject's package list (setuptools ``packages.find`` include patterns) names every
+    directory of ``patching`` and ``export`` that holds an ``__init__.py``: a wheel without
+    ``patching.operator`` would install and fail at import."""
+    import tomllib
+
+    from setuptools import find_packages
+
+    config = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]["find"]
+    shipped = set(find_packages(where=str(REPO), include=config["include"]))
+    present = {".".join(p.parent.relative_to(REPO).parts) for pkg in PACKAGES for p in (REPO / pkg).rglob("__init__.py")}
+    assert present and present <= shipped
