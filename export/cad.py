@@ -1,7 +1,7 @@
 """The surface as an object of a CAD scripting library: build123d and cadquery.
 
 Both libraries wrap OpenCASCADE's ``TopoDS_Shape`` in their own classes; the environment holds
-one OCP module (README, "What gets installed"), so the B-rep of ``export.brep.to_shape`` is
+one OCP module (docs/architecture.md, "Dependencies"), so the B-rep of ``export.brep.to_shape`` is
 handed over as it is, without a file or a copy: a closed surface is a ``Solid``, an open one a
 ``Shell``.  The source may be a ``BezierSurface``, a ``ControlMesh`` or the path of a mesh file;
 for the last two, a ``BuildOptions`` (or its fields as keywords) chooses how it is built.
