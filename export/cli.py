@@ -126,7 +126,7 @@ def cmd_build(args: argparse.Namespace) -> int:
     from export.pipeline import STAGES, run_build
 
     jobs = _jobs(args)
-    if len(jobs) == 1:  # in this process: errors reach main()'s handler (and --debug)
+    if len(jobs) == 1 and not args.dask:  # in this process: errors reach main()'s handler (and --debug)
         start = time.perf_counter()
         with _Bar(args, len(STAGES), "stages", f"{Path(jobs[0].mesh).name}: {STAGES[0]}") as bar:
             started = []
@@ -148,7 +148,7 @@ def _build_many(args: argparse.Namespace, jobs: list) -> int:
     from export.pipeline import build_files
 
     with _Bar(args, len(jobs), "meshes") as bar:
-        bar.describe(f"building in {min(args.jobs, len(jobs))} processes")
+        bar.describe(f"building on the Dask cluster {args.dask}" if args.dask else f"building in {min(args.jobs, len(jobs))} processes")
 
         def report(result) -> None:
             for note in result.notes:
@@ -159,7 +159,12 @@ def _build_many(args: argparse.Namespace, jobs: list) -> int:
                 bar.write(f"nupatch: {result.message}")
             bar.update()
 
-        results = build_files(jobs, args.jobs, report)
+        if args.dask:
+            from export.dask_batch import build_on_dask
+
+            results = build_on_dask(jobs, args.dask, report)
+        else:
+            results = build_files(jobs, args.jobs, report)
     failed = sum(r.status != "ok" for r in results)
     if failed:
         _progress(args, f"{failed} of {len(jobs)} meshes failed")
@@ -356,6 +361,11 @@ def _parser() -> argparse.ArgumentParser:
         help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
     )
     p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="build several meshes in N processes (default 1)")
+    p.add_argument(
+        "--dask", metavar="ADDRESS",
+        help="build on a Dask cluster instead: tcp://host:port of a running scheduler, or 'local' for a LocalCluster here "
+        "(extra [dask]); the files are written here",
+    )
     p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
     p.add_argument(
         "--tolerance", type=float, metavar="T",

@@ -16,7 +16,7 @@ import patching
 from patching.errors import NupatchError
 from patching.options import BuildOptions
 
-__all__ = ["BuildJob", "BuildResult", "EXACT_FORMATS", "STAGES", "build_file", "build_files", "run_build", "warn_folds"]
+__all__ = ["BuildJob", "BuildResult", "EXACT_FORMATS", "STAGES", "build_file", "build_files", "build_one", "run_build", "warn_folds"]
 
 #: Formats that carry the exact B-rep, so that packing applies to them.
 EXACT_FORMATS = ("step", "iges", "brep")
@@ -124,8 +124,8 @@ def warn_folds(surface: patching.BezierSurface) -> None:
         )
 
 
-def _build_worker(job: BuildJob) -> BuildResult:
-    """Run one job (in a worker process); never raises."""
+def build_one(job: BuildJob) -> BuildResult:
+    """Run one job and report it as a BuildResult (bad input and bugs alike); never raises."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", patching.NupatchWarning)
         try:
@@ -150,11 +150,11 @@ def build_files(jobs: Iterable[BuildJob], workers: int = 1, report: Callable[[Bu
     results = []
     if workers <= 1 or len(jobs) <= 1:
         for job in jobs:
-            results.append(_build_worker(job))
+            results.append(build_one(job))
             report(results[-1])
         return results
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-        for future in as_completed([pool.submit(_build_worker, job) for job in jobs]):
+        for future in as_completed([pool.submit(build_one, job) for job in jobs]):
             results.append(future.result())
             report(results[-1])
     return results
