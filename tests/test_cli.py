@@ -418,11 +418,11 @@ def test_pack_keeps_the_global_steps_that_build_leaves_for_the_adaptive_path(tmp
     """Sharpness 3 on a 6 x 5 torus: three global steps would make 30 x 4^3 = 1,920 faces, so
     build refines adaptively (fewer patches, split sides); --pack, which merges the patches of
     one mesh, still takes the global steps and packs them, as before (exit 0, not refused)."""
-    from export.cli import BuildJob, run_build
+    from export.pipeline import BuildJob, run_build
 
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 3\n"))
-    plain = run_build(BuildJob(str(mesh), str(tmp_path / "plain.step"), "step", None, "optimized", "eigen-polyhedron"))
+    plain = run_build(BuildJob(str(mesh), str(tmp_path / "plain.step"), "step"))
     packed = tmp_path / "packed.step"
     result = run_cli("build", mesh, "-o", packed, "--pack", "-q")
     assert result.returncode == 0, result.stderr
