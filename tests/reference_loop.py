@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 
 INF = 10.0
+#: cos and pi of the smooth vertex mask; the tests swap in mpmath's for exact high-precision runs
+COS, PI = math.cos, math.pi
 
 
 def _dec(s):
@@ -21,7 +23,7 @@ def _dec(s):
 
 class RefMesh:
     def __init__(self, points, faces, creases=None, corners=None, boundary_mode=1, method="uniform"):
-        self.P = [tuple(map(float, p)) for p in points]
+        self.P = [tuple(p) for p in points]
         self.faces = [tuple(int(x) for x in f) for f in faces]
         self.creases = dict(creases or {})  # (a, b) a < b -> s
         self.corners = dict(corners or {})
@@ -107,9 +109,9 @@ class RefMesh:
                 m = {}
                 if r in ("smooth", "dart"):
                     if n == 6:
-                        beta = 1.0 / 16.0
+                        beta = 0.0625
                     else:
-                        c = 0.375 + 0.25 * math.cos(2 * math.pi / n)
+                        c = 0.375 + 0.25 * COS(2 * PI / n)
                         beta = (0.625 - c * c) / n
                     m[v] = 1.0 - beta * len(ve)
                     for e in ve:
