@@ -33,7 +33,7 @@ def test_unit_length_and_limit_where_b_is_zero(path, scheme):
         assert np.all(np.isfinite(out.normals))
         assert np.abs(np.linalg.norm(out.normals, axis=1) - 1).max() < 1e-14
         assert out.corner_normal.shape == out.faces.shape
-        nl = op.limit.normals(mesh.vertices)
+        nl = op.limit.normals(op.mesh.vertices)
         zero = op.blend[op.region_vertex] == 0
         assert np.abs(out.normals[zero] - nl[zero]).max(initial=0) < 1e-15
         lim = subdivide_with_normals(mesh, 2, scheme, normals="limit")
@@ -66,7 +66,7 @@ def test_sharp_crease_one_normal_per_side(scheme, levels):
     nregions = np.bincount(op.region_vertex, minlength=topo.n_vertices)
     assert np.all(nregions[crease] == 2)
     assert np.all(nregions[count == 0] == 1)
-    nl = op.limit.normals(mesh.vertices)
+    nl = op.limit.normals(op.mesh.vertices)
     sel = np.isin(op.region_vertex, crease)
     assert np.array_equal(out.normals[sel], nl[sel])
     # the two sides of a crease vertex are different normals (a real crease)
@@ -100,7 +100,7 @@ def test_regular_mesh_gives_limit_normals(scheme):
     op = shading_operator(mesh, 2, scheme)
     out = op.evaluate(mesh.vertices)
     assert np.all(op.blend == 0)
-    assert np.abs(out.normals - op.limit.normals(mesh.vertices)).max() == 0
+    assert np.abs(out.normals - op.limit.normals(op.mesh.vertices)).max() == 0
 
 
 @pytest.mark.parametrize("scheme", ["loop", "catmark"])
@@ -152,4 +152,4 @@ def test_share_of_vertices_needing_subdivided_normals():
     assert 0.05 < share < 0.5
     out = op.evaluate(sphere.vertices)
     far = op.blend[op.region_vertex] == 0
-    assert np.array_equal(out.normals[far], op.limit.normals(sphere.vertices)[far])
+    assert np.array_equal(out.normals[far], op.limit.normals(op.mesh.vertices)[far])

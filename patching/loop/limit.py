@@ -24,7 +24,8 @@ import scipy.sparse as sp
 
 from ..mesh import ControlMesh
 from ..topology import Topology
-from .refine import LoopLevel, decay_steps, loop_operator
+from .cache import topology_of
+from .refine import LoopLevel, decay_steps, level_operator, loop_operator
 from .stationary import StationaryMasks, corner_regions, evaluate_normals, level_rules, select_regions, stationary_masks
 
 __all__ = ["LimitMasks", "loop_limit_masks", "loop_limit_points", "loop_limit_normals", "MAX_LIMIT_FACES"]
@@ -78,7 +79,7 @@ def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform") -> Limit
             f"the limit of sharpness {k} needs {k} refinement steps of {mesh.n_faces} faces, more than "
             f"{MAX_LIMIT_FACES:,} faces", mesh.name,
         )
-    topo0 = Topology(mesh)
+    topo0 = topology_of(mesh)
     sharp0, _ = level_rules(mesh, topo0)
     label0, rv0 = corner_regions(topo0, sharp0)
     nv0 = mesh.n_vertices
@@ -90,8 +91,8 @@ def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform") -> Limit
         cmap = _corner_child_loop(topo, cmap)
         total = (S @ total).tocsr()
         cur = child
-        topo = Topology(cur)
-    S, _ = loop_operator(cur, crease_method)
+        topo = topology_of(cur)
+    S = level_operator(cur, crease_method)
     masks = stationary_masks(cur, topo, S, "loop", targets=np.arange(nv0))
     first = np.zeros(rv0.size, np.int64)
     first[label0[::-1]] = np.arange(label0.size)[::-1]

@@ -38,6 +38,7 @@ import scipy.sparse as sp
 from ..errors import KnotError, UnsupportedError
 from ..mesh import ControlMesh
 from ..topology import Topology
+from .cache import topology_of
 from .rules import (
     CORNER,
     CREASE,
@@ -101,7 +102,7 @@ class LoopLevel:
         if crease_method not in CREASE_METHODS:
             raise UnsupportedError(f"crease method must be one of {', '.join(CREASE_METHODS)}, got '{crease_method}'")
         check_loop_mesh(mesh)
-        t = Topology(mesh)
+        t = topology_of(mesh)
         check_uniform(mesh, t.n_edges)
         es = t.edge_sharpness.copy()
         explicit_inf = es >= INFINITE
@@ -286,6 +287,11 @@ def loop_operator(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[sp
     L = LoopLevel.of(mesh, crease_method)
     s = _operator(L)
     return s, _child_mesh(L, s @ mesh.vertices)
+
+
+def level_operator(mesh: ControlMesh, crease_method: str = "uniform") -> sp.csr_matrix:
+    """S of ``loop_operator`` without building the refined mesh."""
+    return _operator(LoopLevel.of(mesh, crease_method))
 
 
 def loop_subdivide(mesh: ControlMesh, steps: int = 1, crease_method: str = "uniform") -> ControlMesh:

@@ -81,8 +81,9 @@ class StationaryMasks:
     """Linear masks over the level's vertices.  position (v, n) CSR: limit points.
     Per region r (``region_of_corner`` (H,), ``region_vertex`` (r,)): ``tangent_a``,
     ``tangent_b`` (r, n) CSR, normal ~ (a P) x (b P); ``facet_a``, ``facet_b`` (q, n) with
-    ``facet_region`` (q,): facet pairs whose summed cross products orient the normal (and are
-    the normal where ``approximate``)."""
+    ``facet_region`` (q,): facet pairs whose summed cross products orient the normal (one
+    facet a region, at the level's points) and are the normal where ``approximate`` (every
+    facet of the region, at the ring's limit points)."""
 
     position: sp.csr_matrix
     region_of_corner: np.ndarray
@@ -107,8 +108,9 @@ class StationaryMasks:
 def evaluate_normals(masks: StationaryMasks, points: np.ndarray) -> np.ndarray:
     """(r, 3) unit limit normal of every region (nonlinear: a cross product of linear masks)."""
     n = np.cross(masks.tangent_a @ points, masks.tangent_b @ points)
-    o = np.zeros((masks.region_vertex.size, 3))
-    np.add.at(o, masks.facet_region, np.cross(masks.facet_a @ points, masks.facet_b @ points))
+    q = masks.facet_region.size
+    agg = sp.csr_matrix((np.ones(q), (masks.facet_region, np.arange(q))), shape=(masks.region_vertex.size, q))
+    o = agg @ np.cross(masks.facet_a @ points, masks.facet_b @ points)
     sign = np.where(np.einsum("ij,ij->i", n, o) < 0, -1.0, 1.0)
     n = n * sign[:, None]
     n = np.where(masks.approximate[:, None], o, n)
@@ -353,13 +355,29 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
                     ta.add(np.full(c.size, rr), c, pair[0])
                     tb.add(np.full(c.size, rr), c, pair[1])
     freg_a = np.concatenate(freg) if freg else np.zeros(0, np.int64)
+    # one facet per region orients its normal; approximate regions keep all (their normal)
+    keep = np.zeros(freg_a.size, bool)
+    _, first_idx = np.unique(freg_a, return_index=True)
+    keep[first_idx] = True
+    keep |= approx[freg_a]
+    sel = np.flatnonzero(keep)
+    freg_a = freg_a[sel]
     q = freg_a.size
     P = pos.matrix((nv, nv))
-    # facets at the limit points of the ring: the difference rows times the limit masks
+    # facets of approximate regions at the limit points of the ring (the difference rows
+    # times the limit masks); the others only orient a normal, at the level's points
     return StationaryMasks(
         P, label, region_vertex, ta.matrix((nr, nv)), tb.matrix((nr, nv)),
-        (fa.matrix((q, nv)) @ P).tocsr(), (fb.matrix((q, nv)) @ P).tocsr(), freg_a, approx,
+        _at_limit(fa.matrix((keep.size, nv))[sel], P, approx[freg_a]),
+        _at_limit(fb.matrix((keep.size, nv))[sel], P, approx[freg_a]), freg_a, approx,
     )
+
+
+def _at_limit(F: sp.csr_matrix, P: sp.csr_matrix, rows: np.ndarray) -> sp.csr_matrix:
+    """Rows ``rows`` of F replaced by F @ P (limit points), the others kept."""
+    keep = sp.diags((~rows).astype(np.float64))
+    swap = sp.diags(rows.astype(np.float64))
+    return (keep @ F + swap @ (F @ P)).tocsr()
 
 
 def select_regions(masks: StationaryMasks, regions: np.ndarray) -> StationaryMasks:

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 from ..errors import KnotError, UnsupportedError
 from ..mesh import INFINITELY_SHARP, ControlMesh
 from ..topology import Topology
+from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks, loop_limit_masks
 from ..loop.stationary import corner_regions, level_rules, select_regions, stationary_masks
 
@@ -38,7 +39,7 @@ def _catmark_decay(mesh: ControlMesh) -> int:
 
 def check_uniform_catmark(mesh: ControlMesh) -> None:
     """Uniform knots: one interval on every strip, else a KnotError naming two values."""
-    si = Topology(mesh).strip_interval
+    si = topology_of(mesh).strip_interval
     if si.size and not np.all(si == si[0]):
         raise KnotError(
             f"normals take uniform knots only: strip intervals {float(si.min()):g} and {float(si.max()):g}", mesh.name
@@ -53,7 +54,7 @@ def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_met
     k = _catmark_decay(mesh)
     if int(mesh.face_sizes.sum()) * 4 ** (k + 1) > MAX_LIMIT_FACES:
         raise UnsupportedError(f"the limit needs {k} refinement steps of {mesh.n_faces} faces, too many", mesh.name)
-    topo0 = Topology(mesh)
+    topo0 = topology_of(mesh)
     sharp0, _ = level_rules(mesh, topo0)
     label0, rv0 = corner_regions(topo0, sharp0)
     nv0 = mesh.n_vertices
@@ -67,7 +68,7 @@ def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_met
         cmap = 4 * cmap
         total = (S @ total).tocsr()
         cur = child
-        topo = Topology(cur)
+        topo = topology_of(cur)
     S, _ = subdivision_operator(cur, rules=rules, crease_method=crease_method)
     masks = stationary_masks(cur, topo, S, "catmark", targets=ids)
     first = np.zeros(rv0.size, np.int64)

@@ -43,6 +43,7 @@ import scipy.sparse as sp
 from ..errors import UnsupportedError
 from ..mesh import ControlMesh
 from ..topology import Topology
+from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks
 from ..loop.stationary import corner_regions, evaluate_normals, level_rules
 from .limit import SCHEMES, limit_masks
@@ -69,7 +70,7 @@ class SubdividedMesh:
 
 def _step(mesh: ControlMesh, scheme: str, rules: str, crease_method: str):
     """(S, child, parent face of every child corner)."""
-    topo = Topology(mesh)
+    topo = topology_of(mesh)
     if scheme == "loop":
         from ..loop.refine import loop_operator
 
@@ -84,7 +85,7 @@ def _step(mesh: ControlMesh, scheme: str, rules: str, crease_method: str):
 
 
 def _regions(mesh: ControlMesh):
-    topo = Topology(mesh)
+    topo = topology_of(mesh)
     sharp, rule = level_rules(mesh, topo)
     label, rv = corner_regions(topo, sharp)
     return topo, label, rv, rule
@@ -116,7 +117,11 @@ def region_operator(S: sp.csr_matrix, ptopo: Topology, plabel: np.ndarray, prv: 
         ent = np.repeat(np.arange(multi.size), cnt)
         off = np.arange(ent.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
         hp = order[start[p[multi]][ent] + off]
-        side = np.unique(clabel.astype(np.int64) * nfp + parent_face)
+        # the (child region, parent face) pairs of the regions involved: their sides
+        involved = np.zeros(crv.size, bool)
+        involved[r[multi]] = True
+        hc = np.flatnonzero(involved[clabel])
+        side = np.unique(clabel[hc].astype(np.int64) * nfp + parent_face[hc])
         key = r[multi][ent] * nfp + ptopo.face[hp]
         inside = np.isin(key, side)
         n_in = np.bincount(ent, weights=inside, minlength=multi.size)
@@ -163,7 +168,7 @@ class ShadingOperator:
     variant: str
     power: float
     mesh: ControlMesh  # the refined mesh (positions of the input it was built from)
-    geometry: sp.csr_matrix  # level-L points from control points
+    steps: list  # the L step operators: level-L points = S_L @ ... @ S_1 @ P
     first: sp.csr_matrix  # level-1 points from control points
     level1_faces: np.ndarray  # (H1,) face of each corner at level 1
     level1_corner_faces: tuple  # (face_vertices, face_offsets) of level 1
@@ -171,24 +176,43 @@ class ShadingOperator:
     level1_regions: int
     normal_op: sp.csr_matrix  # level-L regions from level-1 regions
     blend: np.ndarray  # (nv_L,) b
-    limit: LimitMasks | None  # over the control points
+    limit: LimitMasks | None  # over the level-L points
     region_of_corner: np.ndarray  # (H_L,)
     region_vertex: np.ndarray  # (r_L,)
     keep_faces: np.ndarray  # (f_L,) bool: not a hole
 
+    @property
+    def geometry(self) -> sp.csr_matrix:
+        """The composed operator (level-L points = geometry @ control points)."""
+        g = sp.identity(self.steps[0].shape[1] if self.steps else self.mesh.n_vertices, format="csr")
+        for S in self.steps:
+            g = (S @ g).tocsr()
+        return g
+
+    def points(self, points: np.ndarray) -> np.ndarray:
+        """Level-L points: the step operators applied in turn (cheaper than composing them)."""
+        P = np.asarray(points, dtype=np.float64)
+        for S in self.steps:
+            P = S @ P
+        return P
+
     def evaluate(self, points: np.ndarray) -> SubdividedMesh:
         P = np.asarray(points, dtype=np.float64)
-        out = self.geometry @ P
+        levels = []
+        for S in self.steps:
+            P = S @ P
+            levels.append(P)
+        out = P
         k = 3 if self.scheme == "loop" else 4
         faces = self.mesh.face_vertices.reshape(-1, k)[self.keep_faces]
         if self.normals_mode == "none":
             return SubdividedMesh(out, faces, None, None)
-        nl = self.limit.normals(P)
+        nl = self.limit.normals(out)
         if self.normals_mode == "limit":
             normals = nl
             blend = None
         else:
-            p1 = self.first @ P
+            p1 = levels[0]
             fv, fo = self.level1_corner_faces
             # area-weighted face normals (Newell: sum of cross products of consecutive corners)
             nxt = np.arange(fv.size) + 1
@@ -239,18 +263,17 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
 
         check_uniform_catmark(mesh)
     nv0 = mesh.n_vertices
-    geometry = sp.identity(nv0, format="csr")
-    first = geometry
+    first = sp.identity(nv0, format="csr")
     cur = mesh
     ops = []
+    steps = []
     for level in range(levels):
         S, child, pface = _step(cur, scheme, rules, crease_method)
-        geometry = (S @ geometry).tocsr()
+        steps.append(S)
         if level == 0:
-            first = geometry
+            first = S
         ops.append((cur, S, child, pface))
         cur = child
-    topoL = Topology(cur)
     k = 3 if scheme == "loop" else 4
     holes = np.zeros(cur.n_faces, bool)
     if cur.holes:
@@ -263,14 +286,10 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
     if cur.face_sizes.size and not np.all(cur.face_sizes == k) and levels > 0:
         raise AssertionError("refined faces of unexpected size")
     if normals == "none":
-        return ShadingOperator(scheme, levels, normals, variant, power, cur, geometry, first, np.zeros(0, np.int64),
+        return ShadingOperator(scheme, levels, normals, variant, power, cur, steps, first, np.zeros(0, np.int64),
                                (np.zeros(0, np.int64), np.zeros(1, np.int64)), np.zeros(0, np.int64), 0,
                                sp.csr_matrix((0, 0)), np.zeros(cur.n_vertices), None, np.zeros(0, np.int64), np.zeros(0, np.int64), keep)
-    L = limit_masks(cur, scheme, rules, crease_method)
-    # compose the limit masks with the geometry so that they act on the control points
-    from dataclasses import replace
-
-    L = replace(L, position=(L.position @ geometry).tocsr(), stationary=L.stationary.compose(geometry))
+    L = limit_masks(cur, scheme, rules, crease_method)  # over the level-L points
     # level-1 regions (normals start there), blend weights seeded at blend_level
     m1 = ops[0][2]
     t1, label1, rv1, _ = _regions(m1)
@@ -288,7 +307,7 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
     if b is None:
         b = _seed_blend(cur, scheme, variant)
     return ShadingOperator(
-        scheme, levels, normals, variant, power, cur, geometry, first, t1.face, (m1.face_vertices, m1.face_offsets),
+        scheme, levels, normals, variant, power, cur, steps, first, t1.face, (m1.face_vertices, m1.face_offsets),
         label1, rv1.size, T, b, L, plabel if levels > 1 else label1, prv if levels > 1 else rv1, keep,
     )
 
