@@ -105,12 +105,21 @@ class StationaryMasks:
         )
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) arrays (numpy's ``cross`` is several times slower)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def evaluate_normals(masks: StationaryMasks, points: np.ndarray) -> np.ndarray:
     """(r, 3) unit limit normal of every region (nonlinear: a cross product of linear masks)."""
-    n = np.cross(masks.tangent_a @ points, masks.tangent_b @ points)
-    q = masks.facet_region.size
-    agg = sp.csr_matrix((np.ones(q), (masks.facet_region, np.arange(q))), shape=(masks.region_vertex.size, q))
-    o = agg @ np.cross(masks.facet_a @ points, masks.facet_b @ points)
+    n = cross(masks.tangent_a @ points, masks.tangent_b @ points)
+    c = cross(masks.facet_a @ points, masks.facet_b @ points)
+    nr = masks.region_vertex.size
+    o = np.stack([np.bincount(masks.facet_region, weights=c[:, i], minlength=nr) for i in range(3)], axis=1)
     sign = np.where(np.einsum("ij,ij->i", n, o) < 0, -1.0, 1.0)
     n = n * sign[:, None]
     n = np.where(masks.approximate[:, None], o, n)

@@ -45,7 +45,7 @@ from ..mesh import ControlMesh
 from ..topology import Topology
 from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks
-from ..loop.stationary import corner_regions, evaluate_normals, level_rules
+from ..loop.stationary import corner_regions, cross, evaluate_normals, level_rules
 from .limit import SCHEMES, limit_masks
 
 __all__ = ["ShadingOperator", "SubdividedMesh", "shading_operator", "subdivide_with_normals", "NORMAL_MODES", "VARIANTS"]
@@ -204,7 +204,9 @@ class ShadingOperator:
             levels.append(P)
         out = P
         k = 3 if self.scheme == "loop" else 4
-        faces = self.mesh.face_vertices.reshape(-1, k)[self.keep_faces]
+        every = bool(self.keep_faces.all())
+        faces = self.mesh.face_vertices.reshape(-1, k)
+        faces = faces if every else faces[self.keep_faces]
         if self.normals_mode == "none":
             return SubdividedMesh(out, faces, None, None)
         nl = self.limit.normals(out)
@@ -218,7 +220,7 @@ class ShadingOperator:
             nxt = np.arange(fv.size) + 1
             ends = fo[1:][self.level1_faces]
             nxt = np.where(nxt == ends, fo[:-1][self.level1_faces], nxt)
-            cr = np.cross(p1[fv], p1[fv[nxt]])
+            cr = cross(p1[fv], p1[fv[nxt]])
             fn = np.zeros((fo.size - 1, 3))
             np.add.at(fn, self.level1_faces, cr)
             n1 = np.zeros((self.level1_regions, 3))
@@ -230,7 +232,8 @@ class ShadingOperator:
             normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
             normals = np.where((bp == 0)[:, None], nl, normals)  # exactly N_L where b = 0
             blend = self.blend
-        cn = self.region_of_corner.reshape(-1, k)[self.keep_faces]
+        cn = self.region_of_corner.reshape(-1, k)
+        cn = cn if every else cn[self.keep_faces]
         return SubdividedMesh(out, faces, cn, normals, blend)
 
 
