@@ -153,3 +153,28 @@ def test_share_of_vertices_needing_subdivided_normals():
     out = op.evaluate(sphere.vertices)
     far = op.blend[op.region_vertex] == 0
     assert np.array_equal(out.normals[far], op.limit.normals(op.mesh.vertices)[far])
+
+
+@pytest.mark.skipif(not CATMARK, reason="OpenSubdiv shapes absent")
+@pytest.mark.parametrize("name", ["catmark_cube_creases1", "catmark_tent_creases0", "catmark_dart_edgeonly", "catmark_hole_test1"])
+@pytest.mark.parametrize("rules", ["opensubdiv", "seed"])
+def test_catmark_limit_agrees_with_subdivision_module(name, rules):
+    """Catmull-Clark limit points from the 1-ring eigenvectors equal patching.subdivision's
+    limit masks; at smooth vertices the normal is the cross product of its limit tangents."""
+    from patching.shading.limit import catmark_limit_masks
+    from patching.subdivision import limit_points, limit_tangents, subdivide
+
+    mesh = subdivide(patching.read_mesh(SHAPES / f"{name}.obj"), 1, rules=rules)
+    masks = catmark_limit_masks(mesh, rules)
+    assert np.abs(masks.points(mesh.vertices) - limit_points(mesh, rules)).max() < 1e-12
+    t = limit_tangents(mesh, rules)
+    n = np.cross(t[:, 0], t[:, 1])
+    ok = np.isfinite(n).all(axis=1) & (np.linalg.norm(n, axis=1) > 1e-12)
+    topo = patching.Topology(mesh)
+    smooth = ok & (np.bincount(topo.edges[(topo.edge_sharpness > 0) | topo.edge_is_boundary].ravel(), minlength=mesh.n_vertices) == 0)
+    mine = masks.normals(mesh.vertices)
+    first = np.zeros(mesh.n_vertices, np.int64)
+    first[topo.origin[::-1]] = masks.region_of_corner[::-1]
+    v = np.flatnonzero(smooth)
+    assert v.size
+    assert _angle(mine[first[v]], n[v] / np.linalg.norm(n[v], axis=1)[:, None]).max() < 1e-9
