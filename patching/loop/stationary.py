@@ -284,11 +284,16 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
             rows = np.concatenate([vrow(v)[:, None], erow(spokes_e), topo.face[ring]], axis=1)
         reg = label[ring[:, 0]]
         wanted = want[v]
-        # facet pairs (orientation, approximate normals): per face i of the ring
+        spoke_sharp = sharp[spokes_e]
+        plain = (not boundary) & (rule[v] == SMOOTH) & ~bad_face[v] & ~spoke_sharp.any(axis=1)
+        if not loop:
+            plain &= ~nb_tagged[v]
+        # facet pairs (orientation, approximate normals): per face i of the ring (plain
+        # vertices, one region and never approximate: their first face only)
         for i in range(k):
             j = (i + 1) % m
             pairs = [(1 + i, 1 + j)] if loop else [(1 + i, 1 + m + i), (1 + m + i, 1 + j)]
-            wv = np.flatnonzero(wanted)
+            wv = np.flatnonzero(wanted & (~plain if i else True))
             for p, q in pairs:
                 idx = np.arange(wv.size) + n_facets
                 n_facets += wv.size
@@ -297,10 +302,6 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
                 fb.add(idx, cols[wv, q], 1.0)
                 fb.add(idx, v[wv], -1.0)
                 freg.append(label[ring[wv, i]])
-        spoke_sharp = sharp[spokes_e]
-        plain = (not boundary) & (rule[v] == SMOOTH) & ~bad_face[v] & ~spoke_sharp.any(axis=1)
-        if not loop:
-            plain &= ~nb_tagged[v]
         grp = np.flatnonzero(plain)
         if grp.size and loop:
             n = float(k)
