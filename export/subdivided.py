@@ -1,5 +1,5 @@
 """Subdivided meshes with normals: OBJ (``vn`` and ``f v//n``) and binary glTF (``.glb`` with
-NORMAL), and the ``subdivide --scheme/--normals`` branch of the command line (DESIGN 4).
+NORMAL), and the ``subdivide --scheme/--normals`` branch of the command line.
 
 OBJ: one ``v`` per refined vertex, one ``vn`` per normal region (a sharp vertex has one per
 region between its sharp edges, [ZBK] sec. 3.4), faces ``f a//na b//nb ...``; without
@@ -84,7 +84,7 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
 
 
 def run_subdivide(args: argparse.Namespace, progress=None) -> int:
-    """``nupatch subdivide`` with ``--scheme``/``--normals``/``.glb`` (DESIGN 4)."""
+    """``nupatch subdivide`` with ``--scheme``/``--normals``/``.glb``."""
     from patching.atomic import check_output_path
 
     mesh_path, out = Path(args.mesh), Path(args.output)
