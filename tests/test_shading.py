@@ -124,8 +124,8 @@ def test_flat_mesh_gives_plane_normal(scheme, variant):
 
 
 def test_semi_sharp_crease_turns_smooth():
-    """A crease of sharpness 1 splits the normals at level 1 only: at level 2 and later every
-    vertex has one normal; an infinitely sharp one keeps two."""
+    """Loop: a crease of sharpness 1 leaves no sharp edge after one step, so at levels 2 and 3
+    every vertex has one normal; an infinitely sharp one keeps two."""
     v, f = _icosahedron()
     mesh = patching.from_arrays(v, f, creases={(0, 5): 1.0, (5, 11): 1.0, (0, 11): 1.0})
     for levels in (2, 3):
@@ -178,3 +178,22 @@ def test_catmark_limit_agrees_with_subdivision_module(name, rules):
     v = np.flatnonzero(smooth)
     assert v.size
     assert _angle(mine[first[v]], n[v] / np.linalg.norm(n[v], axis=1)[:, None]).max() < 1e-9
+
+
+def test_catmark_semi_sharp_crease_turns_smooth():
+    """Catmull-Clark: a cube's top ring of sharpness 2 is still sharp (1) at level 1, so its
+    vertices have two normals there and one from level 2 on; of sharpness 10, two at every
+    level."""
+    def cube(s):
+        v = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
+        f = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
+        return patching.from_arrays(v, f, creases={(4, 5): s, (5, 7): s, (6, 7): s, (4, 6): s})
+
+    one = shading_operator(cube(2.0), 1, "catmark")
+    assert one.region_vertex.size > one.mesh.n_vertices
+    for levels in (2, 3):
+        op = shading_operator(cube(2.0), levels, "catmark")
+        assert op.region_vertex.size == op.mesh.n_vertices
+        assert np.abs(np.linalg.norm(op.evaluate(cube(2.0).vertices).normals, axis=1) - 1).max() < 1e-14
+    sharp = shading_operator(cube(10.0), 3, "catmark")
+    assert sharp.region_vertex.size > sharp.mesh.n_vertices
