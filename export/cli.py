@@ -173,6 +173,10 @@ def _build_many(args: argparse.Namespace, jobs: list) -> int:
 
 def cmd_subdivide(args: argparse.Namespace) -> int:
     """nupatch subdivide MESH -n K -o OUT.obj: the refined control mesh with its tags (docs/cli.md)."""
+    from export import subdivided  # --scheme / --normals / .glb (export/subdivided.py)
+
+    if subdivided.wants_this(args):
+        return subdivided.run_subdivide(args, _progress)
     from export.atomic import atomic_write_text
     from patching.mesh import format_obj
     from patching.subdivision.catmark import rules_tag, subdivide
@@ -398,6 +402,9 @@ def _parser() -> argparse.ArgumentParser:
         help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    from export.subdivided import add_arguments as _subdivided_arguments  # --scheme, --normals
+
+    _subdivided_arguments(p)
     p.set_defaults(func=cmd_subdivide)
 
     p = sub.add_parser("check", help="validity and continuity of a STEP file: per-edge G0/G1 table, sharp edges")

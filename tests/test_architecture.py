@@ -16,7 +16,10 @@ from tests.conftest import REPO
 PACKAGES = ("patching", "export")
 #: The stages of ``patching`` in the order the data flows; a module may import only from its
 #: own stage, earlier stages and the shared leaves.
-STAGES = ("mesh", "topology", "rules", "subdivision", "extraordinary", "operator", "evaluation")
+STAGES = (
+    "mesh", "topology", "rules", "subdivision", "loop", "shading", "curves",
+    "extraordinary", "operator", "evaluation", "fitting", "toolpath",
+)
 #: Leaf modules every stage may use: they import nothing of the stages.
 LEAVES = ("patching.errors", "patching.options", "patching.bernstein", "patching.surface", "patching.util")
 
@@ -122,8 +125,9 @@ def stage_of(module: str) -> int | None:
 
 
 def test_patching_stages_import_only_earlier_stages():
-    """mesh -> topology -> rules -> subdivision -> extraordinary -> operator -> evaluation:
-    no stage imports a later one, and ``patching`` never imports ``export``."""
+    """mesh -> topology -> rules -> subdivision (Catmull-Clark; Loop, shading) -> curves ->
+    extraordinary -> operator -> evaluation -> fitting, tool paths: no stage imports a later
+    one, and ``patching`` never imports ``export``."""
     wrong = []
     for source, targets in graph().items():
         if not source.startswith("patching"):

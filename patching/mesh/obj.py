@@ -4,7 +4,13 @@ Reads ``v x y z``, ``f a b c ...`` (1-based, ``a/t/n`` forms, negative relative 
 ``t NAME nint/nfloat/nstring ints... floats... strings...`` with 0-based vertex ids:
 ``interval`` and ``crease`` (vertex pairs; one value for all pairs or one per pair), ``corner``
 (vertices; one value or one per vertex), ``hole`` (faces), ``interpolateboundary`` (0, 1, 2).
-Every error names the file and line.
+Edge sharpness as [ZBK] sec. 3.5's implementation writes it: ``fs s_0 .. s_{k-1}`` gives the
+next face's k edges, ``as y s_0 .. s_{k-1}`` the next y faces' edges, value i on the edge from
+the face's vertex i to vertex i + 1 in the file's order (the paper says "clockwise", meaning
+its half-edge order; we take the face's own vertex order); each value > 0 becomes a crease tag
+on that edge (10 or more: infinitely sharp); where two faces or a ``t crease`` line give one
+edge different values, the largest wins, as in [ZBK].  ``vn`` lines are ignored with one
+warning (normals are computed, never read).  Every error names the file and line.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from patching.mesh.control_mesh import ControlMesh, NupatchWarning, from_arrays
 __all__ = ["read_obj", "parse_obj", "format_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
-_IGNORED = {"vt", "vn", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
+_IGNORED = {"vt", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
 _KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "nupatch_rules"}
 
 
@@ -67,6 +73,9 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
     holes: list[int] = []
     interpolate_boundary = 1
     locations: dict[tuple, str] = {}
+    pending: list[tuple[list[float], str]] = []  # fs/as sharpness waiting for their faces
+    face_sharp: dict[tuple[int, int], float] = {}
+    warned_vn = False
 
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
@@ -102,6 +111,35 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
                 raise MeshError(f"face with {len(face)} vertices, at least 3 needed", loc)
             locations[("face", len(faces))] = loc
             faces.append(face)
+            if pending:
+                values, where = pending.pop(0)
+                if len(values) != len(face):
+                    raise InputFileError(f"edge sharpness for a face of {len(face)} vertices has {len(values)} values ({where})", loc)
+                for i, value in enumerate(values):
+                    if value > 0:
+                        a, b = face[i], face[(i + 1) % len(face)]
+                        key = (min(a, b), max(a, b))
+                        face_sharp[key] = max(face_sharp.get(key, 0.0), value)
+                        locations.setdefault(("crease", key), where)
+        elif key in ("fs", "as"):
+            args = parts[1:]
+            count = 1
+            if key == "as":
+                try:
+                    count = int(args[0])
+                except (ValueError, IndexError):
+                    raise InputFileError("'as' needs a face count and sharpness values", loc) from None
+                if count < 1:
+                    raise InputFileError(f"'as' face count must be >= 1, got {count}", loc)
+                args = args[1:]
+            values = [_number(t, "sharpness", loc) for t in args]
+            if not values or any(math.isnan(x) or x < 0 for x in values):
+                raise TagError(f"'{key}' needs sharpness values >= 0", loc)
+            pending.extend([(values, loc)] * count)
+        elif key == "vn":
+            if not warned_vn:
+                warnings.warn(NupatchWarning(f"vn normals ignored: normals are computed from the mesh ({loc})"), stacklevel=2)
+                warned_vn = True
         elif key == "t":
             interpolate_boundary = _parse_tag(
                 parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations
@@ -111,6 +149,10 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
         else:
             raise InputFileError(f"not an OBJ statement: '{key}'", loc)
 
+    if pending:
+        raise InputFileError(f"edge sharpness for {len(pending)} face(s) after the last face", pending[0][1])
+    for key, value in face_sharp.items():
+        creases[key] = max(creases.get(key, 0.0), value)
     if not faces:
         raise MeshError("empty mesh: no faces", source)
     n = len(vertices)

@@ -1,0 +1,28 @@
+"""One Topology per mesh object for the few meshes a refinement touches (derived
+tables computed once; a ControlMesh never changes after construction)."""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+from ..topology import Topology
+
+__all__ = ["topology_of"]
+
+_CACHE: "OrderedDict[int, tuple]" = OrderedDict()
+_SIZE = 8
+
+
+def topology_of(mesh) -> Topology:
+    """``Topology(mesh)``, cached by object identity (the mesh is kept with it, so the id
+    cannot be reused while the entry lives)."""
+    key = id(mesh)
+    hit = _CACHE.get(key)
+    if hit is not None and hit[0] is mesh:
+        _CACHE.move_to_end(key)
+        return hit[1]
+    topo = Topology(mesh)
+    _CACHE[key] = (mesh, topo)
+    while len(_CACHE) > _SIZE:
+        _CACHE.popitem(last=False)
+    return topo

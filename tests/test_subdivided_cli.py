@@ -1,0 +1,131 @@
+"""``nupatch subdivide --scheme/--normals`` (export/subdivided.py) and OBJ ``fs``/``as``/``vn``."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import patching
+from patching.mesh.obj import parse_obj
+from patching.shading import shading_operator
+
+from tests.conftest import SHAPES  # noqa: E402
+TET = "v 1 1 1\nv -1 -1 1\nv -1 1 -1\nv 1 -1 -1\nf 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n"
+
+
+def _one_line_error(res, out: Path, what: str):
+    assert res.returncode == 2, res.stderr
+    lines = [l for l in res.stderr.splitlines() if l.strip() and "warning" not in l]
+    assert len(lines) == 1 and lines[0].startswith("nupatch: error:") and what in lines[0], res.stderr
+    assert not out.exists()
+    assert not list(out.parent.glob(f".{out.name}*")) and not list(out.parent.glob("*.tmp"))
+
+
+def test_obj_with_shading_normals(tmp_path, run_cli):
+    src = tmp_path / "tet.obj"
+    src.write_text(TET + "t crease 2/1/0 0 1 10\nt crease 2/1/0 1 2 10\nt crease 2/1/0 2 0 10\n")
+    out = tmp_path / "out.obj"
+    res = run_cli("subdivide", src, "-n", "2", "--scheme", "loop", "--normals", "shading", "-o", out)
+    assert res.returncode == 0, res.stderr
+    text = out.read_text()
+    vn = np.array([[float(x) for x in l.split()[1:]] for l in text.splitlines() if l.startswith("vn ")])
+    faces = [l.split()[1:] for l in text.splitlines() if l.startswith("f ")]
+    assert all("//" in t for f in faces for t in f)
+    mesh = patching.read_mesh(src)
+    op = shading_operator(mesh, 2, "loop")
+    want = op.evaluate(mesh.vertices)
+    assert vn.shape == want.normals.shape and np.abs(vn - want.normals).max() < 1e-15
+    assert np.abs(np.linalg.norm(vn, axis=1) - 1).max() < 1e-15
+    idx = np.array([[int(t.split("//")[1]) - 1 for t in f] for f in faces])
+    assert np.array_equal(idx, want.corner_normal)
+    # the vertices at the three sharp edges carry more than one normal
+    vid = np.array([[int(t.split("//")[0]) - 1 for t in f] for f in faces])
+    per_vertex = {}
+    for v, n in zip(vid.ravel(), idx.ravel()):
+        per_vertex.setdefault(v, set()).add(n)
+    assert max(len(s) for s in per_vertex.values()) >= 2
+    # reads back (vn ignored with one warning), same positions
+    with pytest.warns(patching.NupatchWarning, match="vn normals ignored"):
+        back = patching.read_mesh(out)
+    assert np.abs(back.vertices - want.points).max() == 0
+
+
+def test_glb_has_normals(tmp_path, run_cli):
+    pygltflib = pytest.importorskip("pygltflib")
+    out = tmp_path / "cube.glb"
+    src = SHAPES / "catmark_cube_creases1.obj"
+    if not src.exists():
+        pytest.skip("OpenSubdiv shapes absent")
+    res = run_cli("subdivide", src, "-n", "2", "--normals", "limit", "-o", out)
+    assert res.returncode == 0, res.stderr
+    g = pygltflib.GLTF2().load(str(out))
+    prim = g.meshes[0].primitives[0]
+    assert prim.attributes.NORMAL is not None
+    acc = g.accessors[prim.attributes.NORMAL]
+    blob = g.binary_blob()
+    view = g.bufferViews[acc.bufferView]
+    data = np.frombuffer(blob[view.byteOffset + (acc.byteOffset or 0):][: acc.count * 12], dtype=np.float32).reshape(-1, 3)
+    assert np.abs(np.linalg.norm(data, axis=1) - 1).max() < 1e-6
+
+
+def test_loop_without_normals_reads_back_with_tags(tmp_path, run_cli):
+    src = tmp_path / "tet.obj"
+    src.write_text(TET + "t crease 2/1/0 0 1 2.5\n")
+    out = tmp_path / "out.obj"
+    assert run_cli("subdivide", src, "-n", "1", "--scheme", "loop", "-o", out).returncode == 0
+    back = patching.read_mesh(out)
+    assert back.n_faces == 16 and sorted(back.creases.values()) == [1.5, 1.5]
+
+
+@pytest.mark.parametrize("case", ["quad", "intervals", "no_steps", "suffix", "fs_count", "fs_after", "variant"])
+def test_bad_input_one_line_no_file(tmp_path, run_cli, case):
+    src = tmp_path / "m.obj"
+    out = tmp_path / "o.obj"
+    args = ["--scheme", "loop"]
+    what = ""
+    if case == "quad":
+        src.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+        what = "face 0 has 4 vertices"
+    elif case == "intervals":
+        src.write_text(TET + "t interval 2/1/0 0 1 2\n")
+        what = "uniform knots"
+    elif case == "no_steps":
+        src.write_text(TET)
+        args += ["--normals", "shading", "-n", "0"]
+        what = "at least one"
+    elif case == "suffix":
+        src.write_text(TET)
+        out = tmp_path / "o.stl"
+        what = ".obj or .glb"
+    elif case == "fs_count":
+        src.write_text(TET.replace("f 1 2 3\n", "fs 1 2\nf 1 2 3\n"))
+        what = "has 2 values"
+    elif case == "fs_after":
+        src.write_text(TET + "fs 1 1 1\n")
+        what = "after the last face"
+    elif case == "variant":
+        src.write_text(TET)
+        args += ["--normals", "shading", "--shading-variant", "c"]
+        res = run_cli("subdivide", src, "-o", out, *args)
+        assert res.returncode == 2 and not out.exists()
+        return
+    res = run_cli("subdivide", src, "-o", out, *args)
+    _one_line_error(res, out, what)
+
+
+def test_fs_and_as_map_to_crease_tags():
+    text = TET.replace("f 1 2 3\n", "fs 0 2 10\nf 1 2 3\n").replace("f 1 4 2\n", "as 2 1 0 0.5\nf 1 4 2\n")
+    mesh = parse_obj(text)
+    # face (0 1 2): edge 1-2 gets 2, edge 2-0 infinitely sharp; faces (0 3 1), (0 2 3):
+    # edge 0-3 gets 1, edge 1-0 0.5 and edge 3-0 1, edge 2-0 max(10, 0.5)
+    assert mesh.creases == {(1, 2): 2.0, (0, 2): 10.0, (0, 3): 1.0, (0, 1): 0.5}
+
+
+def test_vn_ignored_with_one_warning():
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        parse_obj("vn 0 0 1\nvn 0 1 0\n" + TET)
+    assert sum("vn normals ignored" in str(x.message) for x in w) == 1
