@@ -508,7 +508,8 @@ def shape_face_rows(topo) -> np.ndarray:
 def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=None) -> TopoDS_Shape:
     """Finish shared-topology faces: edge ranges, then a shell per connected component of the
     patches, and for a closed component a solid, turned around when ``inside_out(solid)`` says
-    its volume is negative (True), or left a shell when it says None (no volume).  One component gives that shell or solid, several a compound.
+    its volume is negative (True), or left a shell when it says None (no volume).  One
+    component gives that shell or solid, several a compound.
     face_rows: a patch row of each face (default: face i is patch i).
 
     Every curve representation is parametrised on [0, 1] by construction (SameRange,
