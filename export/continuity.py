@@ -307,7 +307,8 @@ def _fading(
         return cand
     crease_end = np.where(dart_first, ends[:, 1], ends[:, 0])
     n = int(ends.max()) + 1
-    support = np.bincount(ends[sharp].ravel(), minlength=n) + np.bincount(crease_end[cand], minlength=n)
+    sharp_ends = ends[sharp].ravel()
+    support = np.bincount(sharp_ends[sharp_ends >= 0], minlength=n) + np.bincount(crease_end[cand], minlength=n)
     # another sharp or fading edge at the crease end (the candidate counts itself once)
     return cand & (support[np.maximum(crease_end, 0)] >= 2)
 
