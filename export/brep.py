@@ -32,6 +32,8 @@ Side rows of a (d+1, d+1) net, in the side's direction (the module docstring of
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from OCP.BRep import BRep_Builder
 from OCP.BRepCheck import BRepCheck_Analyzer
@@ -56,11 +58,12 @@ from OCP.TopoDS import (
 
 from export.tolerances import RELATIVE_TOLERANCE
 from patching.errors import MeshError
+from patching.mesh import NupatchWarning
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
     "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
-    "refuse_no_volume", "refuse_round_off", "shape_face_rows",
+    "no_volume_components", "warn_no_volume", "refuse_round_off", "shape_face_rows",
 ]
 
 class BrepError(RuntimeError):
@@ -254,10 +257,22 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
         bound_face_pieces(builder, f, wire, edges, tol)
         faces.append(f)
 
-    volumes: list[float] = []
-    shape = assemble(builder, edges, faces, topo, lambda solid: volumes.append(_volume(solid)) or volumes[-1] < 0.0)
+    label, closed = patch_components(topo)
+    sizes = iter(component_sizes(surface, label, closed.size)[closed].tolist())
+    flat: list[int] = []  # positions among the closed components of those with no volume
+    seen = [0]
+
+    def orient(solid) -> bool | None:
+        volume, size = _volume(solid), next(sizes)
+        seen[0] += 1
+        if _encloses_nothing(volume, size):
+            flat.append(seen[0] - 1)
+            return None
+        return volume < 0.0
+
+    shape = assemble(builder, edges, faces, topo, orient)
+    warn_no_volume(surface, label, closed, flat)
     if check:
-        refuse_no_volume(surface, volumes)
         _require_valid(shape, faces, patches, surface)
     return shape
 
@@ -273,12 +288,58 @@ def checked_patches(surface: BezierSurface, check: bool = True) -> list[tuple[in
     return patches
 
 
-def refuse_no_volume(surface: BezierSurface, volumes) -> None:
-    """MeshError when a closed component's volume (one value per solid) is zero to within
-    tolerance x size^2: the control points enclose nothing (bad input, not a bug)."""
-    tol = shape_tolerance(surface)
-    if len(volumes) and min(abs(float(v)) for v in volumes) <= tol * max(surface.size, tol) ** 2:
-        raise MeshError("degenerate geometry: the closed surface encloses no volume", surface.name)
+def component_sizes(surface: BezierSurface, label: np.ndarray, n: int) -> np.ndarray:
+    """(n,) size of each connected component of the patches (``patch_components``' labels):
+    the largest extent of the bounding box of its coefficients, as ``surface.size`` is for the
+    whole surface."""
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    rows = [np.asarray(g.coefficients).reshape(len(g.faces), -1, 3) for g in surface.groups if len(g.faces)]
+    if rows:
+        mins = np.concatenate([r.min(axis=1) for r in rows])
+        maxs = np.concatenate([r.max(axis=1) for r in rows])
+        np.minimum.at(lo, label, mins)
+        np.maximum.at(hi, label, maxs)
+    return np.where(np.isfinite(hi - lo), hi - lo, 0.0).max(axis=1)
+
+
+def _encloses_nothing(volume: float, size: float) -> bool:
+    """A closed component's volume is zero to within its own tolerance x its own size^2 (the
+    tolerance a B-rep of that component alone would get, ``shape_tolerance``)."""
+    tol = max(Precision.Confusion_s(), RELATIVE_TOLERANCE * size)
+    return abs(float(volume)) <= tol * max(size, tol) ** 2
+
+
+def no_volume_components(surface: BezierSurface, volumes) -> list[int]:
+    """Positions, among the closed components (in ``patch_components`` order), of those whose
+    volume (``volumes``, one per closed component) is zero on their own scale."""
+    label, closed = patch_components(surface.topology)
+    sizes = component_sizes(surface, label, closed.size)[closed]
+    return [i for i, (v, s) in enumerate(zip(np.asarray(volumes, float).tolist(), sizes.tolist())) if _encloses_nothing(v, s)]
+
+
+def warn_no_volume(surface: BezierSurface, label: np.ndarray, closed: np.ndarray, flat) -> None:
+    """One NupatchWarning naming the closed components that enclose no volume (``flat``:
+    positions among the closed components), which ``assemble`` wrote as shells: the control
+    points of a closed piece lie in a surface of no thickness (a flat pillow), so that piece
+    gives no solid, and the rest of the model is still written."""
+    if not len(flat):
+        return
+    closed_ids = np.flatnonzero(closed)
+    rows_face = np.concatenate([np.asarray(g.faces, dtype=np.int64) for g in surface.groups]) if surface.groups else np.zeros(0, np.int64)
+    named = []
+    for k in list(flat)[:3]:
+        rows = np.flatnonzero(label == closed_ids[k])
+        named.append(f"the piece of mesh face {int(rows_face[rows[0]])} ({rows.size} patches)")
+    more = f" and {len(flat) - 3} more" if len(flat) > 3 else ""
+    n = len(flat)
+    warnings.warn(
+        NupatchWarning(
+            f"{n} closed piece{'s' if n > 1 else ''} of {surface.name} enclose{'' if n > 1 else 's'} no volume "
+            f"({', '.join(named)}{more}): written as {'shells, not solids' if n > 1 else 'a shell, not a solid'}"
+        ),
+        stacklevel=3,
+    )
 
 
 #: Round-off of the coordinates, as a fraction of the tolerance, from which a B-rep that
@@ -447,7 +508,8 @@ def shape_face_rows(topo) -> np.ndarray:
 def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=None) -> TopoDS_Shape:
     """Finish shared-topology faces: edge ranges, then a shell per connected component of the
     patches, and for a closed component a solid, turned around when ``inside_out(solid)`` says
-    its volume is negative.  One component gives that shell or solid, several a compound.
+    its volume is negative (True), or left a shell when it says None (no volume).  One
+    component gives that shell or solid, several a compound.
     face_rows: a patch row of each face (default: face i is patch i).
 
     Every curve representation is parametrised on [0, 1] by construction (SameRange,
@@ -471,7 +533,11 @@ def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=No
         solid = TopoDS_Solid()
         builder.MakeSolid(solid)
         builder.Add(solid, shell)
-        if inside_out(solid):
+        turn = inside_out(solid)
+        if turn is None:  # closed, but no volume: a shell (the caller warns)
+            parts.append(shell)
+            continue
+        if turn:
             solid = TopoDS_Solid()
             builder.MakeSolid(solid)
             builder.Add(solid, shell.Reversed())

@@ -17,11 +17,22 @@ Every shared edge is then classified (the per-edge G0/G1 table, ``ContinuityRepo
   along its whole length; a continuity defect vanishes wherever the two nets still agree (at
   the ends of an edge whose interior row moved: a nudge of 20% of a torus' tube radius gives
   19 deg at the middle of an edge, 0 at its ends), so it is never taken for a crease however
-  large.  A crease that fades out (a dart) is not sharp by this rule: it is listed with the
-  defects.  10 deg is far above any defect nupatch's constructions leave (G1 residuals 1e-7 deg,
+  large.  10 deg is far above any defect nupatch's constructions leave (G1 residuals 1e-7 deg,
   round-off 1e-11 deg) and below the angle any designed crease has: CAD systems' own "smooth
   edge" defaults for tangent chains are 1-10 deg.  Sharp edges are reported apart and left out
   of the ``smooth`` maxima, so a creased model's test can assert those at round-off;
+- *fading*: a crease that fades out into a dart (``t crease`` edges ending at a vertex with
+  one sharp edge, docs/surface.md: by design the jump is the crease's at one end and 0 at the
+  dart, where every patch shares one tangent plane).  Recognised from the measured profile and
+  the edge's neighbours, not from tags (a STEP file carries none): the gap is within tolerance,
+  the jump is at most ``g1_tolerance_deg`` at one end (the dart) and above it at every other
+  sample, at least ``sharp_angle_deg`` at the other end, and that end's vertex is shared by a
+  sharp edge or by another fading edge (the crease it continues; a crease of two edges between
+  two darts is two fading edges).  A continuity defect is not taken for one: a moved interior
+  row vanishes at both ends of its edge, and a broken tangent plane at the dart gives a jump
+  there.  Not recognised: a crease of a single edge between two darts (0 at both ends, like a
+  defect): it is reported G0.  Fading edges are counted apart (``n_fading_edges``) and, like
+  sharp ones, left out of the ``smooth`` maxima and of ``g1``;
 - otherwise *G1* when its largest normal jump is at most ``g1_tolerance_deg``, *G0* when only
   its gap is at most ``gap_tolerance`` (relative to the diagonal), else *open* (a gap).
 
@@ -48,7 +59,15 @@ from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.gp import gp_Pnt, gp_Vec
 from OCP.ShapeAnalysis import ShapeAnalysis_Surface
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_FORWARD, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
+from OCP.TopAbs import (
+    TopAbs_EDGE,
+    TopAbs_FACE,
+    TopAbs_FORWARD,
+    TopAbs_REVERSED,
+    TopAbs_SHELL,
+    TopAbs_SOLID,
+    TopAbs_VERTEX,
+)
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
@@ -70,7 +89,8 @@ class EdgeDefect:
     gap: float
     angle_deg: float
     position: tuple[float, float, float]
-    #: "G1", "G0", "open" (gap above tolerance) or "sharp" (a crease; module docstring).
+    #: "G1", "G0", "open" (gap above tolerance), "sharp" (a crease) or "fading" (a crease
+    #: fading into a dart; module docstring).
     kind: str = ""
     #: Smallest normal jump along the edge (degrees), what ``sharp`` is decided by.
     min_angle_deg: float = 0.0
@@ -84,8 +104,9 @@ class ContinuityReport:
     bounding-box diagonal of the shape.  worst_edges lists up to ``worst`` (5) non-sharp edges
     by normal jump, then up to as many more by gap; sharp_edges up to as many sharp edges by
     angle.  max_normal_jump_deg and max_gap are over all shared edges, the ``smooth`` maxima
-    over the non-sharp ones only (what a creased model's test asserts); n_g1 + n_g0 + n_open
-    + n_sharp = the number of shared edge pairs.  ``edges`` is the whole per-edge table
+    over the edges neither sharp nor fading (what a creased model's test asserts); n_g1 + n_g0
+    + n_open + n_sharp + n_fading = the number of shared edge pairs; fading_edges lists up to
+    ``worst`` fading edges by angle.  ``edges`` is the whole per-edge table
     (every shared edge) when asked for with ``all_edges=True``, else empty.  Face indices are
     positions in ``TopExp.MapShapes`` order (``export.brep.shape_face_rows``), or the ids given as
     ``face_ids`` (mesh faces when checking a ``BezierSurface``).
@@ -111,6 +132,8 @@ class ContinuityReport:
     n_open_edges: int = 0
     n_sharp_edges: int = 0
     sharp_edges: tuple[EdgeDefect, ...] = ()
+    n_fading_edges: int = 0
+    fading_edges: tuple[EdgeDefect, ...] = ()
     sharp_angle_deg: float = SHARP_ANGLE_DEG
     g1_tolerance_deg: float = G1_TOLERANCE_DEG
     gap_tolerance: float = GAP_TOLERANCE
@@ -134,7 +157,7 @@ class ContinuityReport:
 
     @property
     def g1(self) -> bool:
-        """Every non-sharp shared edge is G1 (and so G0) within the tolerances."""
+        """Every shared edge neither sharp nor fading is G1 (and so G0) within the tolerances."""
         return self.n_g0_edges == 0 and self.n_open_edges == 0
 
     def summary(self, table: tuple[EdgeDefect, ...] | None = None) -> str:
@@ -151,9 +174,14 @@ class ContinuityReport:
             f"{self.n_g0_edges} G0 only, {self.n_open_edges} open (gap > {self.gap_tolerance:g} of the diagonal); "
             f"max gap {self.max_smooth_gap:.3e}, max normal jump {self.max_smooth_normal_jump_deg:.3e} deg",
             f"sharp edges (jump >= {self.sharp_angle_deg:g} deg all along): {self.n_sharp_edges}",
+            f"fading creases (sharp at one end, G1 at the other, continuing a crease): {self.n_fading_edges}",
         ]
         if table is None:
-            sections = (("worst edges", self.worst_edges), ("sharp edges", self.sharp_edges))
+            sections = (
+                ("worst edges", self.worst_edges),
+                ("sharp edges", self.sharp_edges),
+                ("fading creases", self.fading_edges),
+            )
         else:
             sections = (("edges", table),)
         for title, rows in sections:
@@ -251,6 +279,40 @@ def _sample_edge(surfaces: _Surfaces, edge, side1, side2, fractions: np.ndarray)
     return np.array([a, b]).reshape(2, len(ws), 2, 3).transpose(1, 0, 2, 3)
 
 
+def _edge_ends(edge, vertices: TopTools_IndexedMapOfShape, first: np.ndarray, last: np.ndarray) -> tuple[int, int]:
+    """Indices (in ``vertices``) of the edge's vertices at its first and last sample (-1 where
+    it has none); the order is taken from the sample points, whatever the edge's orientation."""
+    a, b = TopExp.FirstVertex_s(edge), TopExp.LastVertex_s(edge)
+    if a.IsNull() or b.IsNull():
+        return -1, -1
+    pa, pb = BRep_Tool.Pnt_s(a), BRep_Tool.Pnt_s(b)
+    da = np.linalg.norm(np.array([pa.X(), pa.Y(), pa.Z()]) - first)
+    db = np.linalg.norm(np.array([pb.X(), pb.Y(), pb.Z()]) - first)
+    ia, ib = vertices.FindIndex(a) - 1, vertices.FindIndex(b) - 1
+    return (ia, ib) if da <= db else (ib, ia)
+
+
+def _fading(
+    angle: np.ndarray, sharp: np.ndarray, closed: np.ndarray, ends: np.ndarray, g1_deg: float, sharp_deg: float
+) -> np.ndarray:
+    """(e,) bool: the edges that are creases fading into a dart (module docstring).
+
+    angle (e, samples) degrees; sharp, closed (e,) bool; ends (e, 2) vertex ids at the first
+    and last sample."""
+    inner = (angle[:, 1:-1] > g1_deg).all(axis=1)
+    dart_first = (angle[:, 0] <= g1_deg) & (angle[:, -1] >= sharp_deg)
+    dart_last = (angle[:, -1] <= g1_deg) & (angle[:, 0] >= sharp_deg)
+    cand = (dart_first | dart_last) & inner & closed & ~sharp & (ends >= 0).all(axis=1)
+    if not cand.any():
+        return cand
+    crease_end = np.where(dart_first, ends[:, 1], ends[:, 0])
+    n = int(ends.max()) + 1
+    sharp_ends = ends[sharp].ravel()
+    support = np.bincount(sharp_ends[sharp_ends >= 0], minlength=n) + np.bincount(crease_end[cand], minlength=n)
+    # another sharp or fading edge at the crease end (the candidate counts itself once)
+    return cand & (support[np.maximum(crease_end, 0)] >= 2)
+
+
 def check_continuity(
     shape_or_path,
     samples_per_edge: int = 9,
@@ -295,9 +357,12 @@ def check_continuity(
     diagonal = shape_diagonal(shape)
     tol = 1e-9 * diagonal if diagonal > 0 else 1e-9
 
+    vertices = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_VERTEX, vertices)
     surfaces = _Surfaces(faces, tol)
     fractions = np.linspace(0.0, 1.0, samples_per_edge)
     pairs: list[tuple[int, tuple[int, int], np.ndarray]] = []
+    pair_ends: list[tuple[int, int]] = []  # vertex indices at the first and last sample
     n_free = 0
     for i in range(1, edge_faces.Extent() + 1):
         edge = TopoDS.Edge_s(edge_faces.FindKey(i))
@@ -320,12 +385,14 @@ def check_continuity(
             samples = _sample_edge(surfaces, edge, sides[0], other, fractions)
             pair_faces = (rename(surfaces.index(sides[0][0])), rename(surfaces.index(other[0])))
             pairs.append((i - 1, pair_faces, samples))
+            pair_ends.append(_edge_ends(edge, vertices, samples[0, 0, 0], samples[-1, 0, 0]))
 
     worst_list: list[EdgeDefect] = []
     sharp_list: list[EdgeDefect] = []
     table: list[EdgeDefect] = []
     max_gap = max_angle = smooth_gap = smooth_angle = 0.0
-    counts = {"G1": 0, "G0": 0, "open": 0, "sharp": 0}
+    fading_list: list[EdgeDefect] = []
+    counts = {"G1": 0, "G0": 0, "open": 0, "sharp": 0, "fading": 0}
     if pairs:
         data = np.stack([s for _, _, s in pairs])  # (e, samples, 2 faces, point|normal, 3)
         p1, p2 = data[:, :, 0, 0], data[:, :, 1, 0]
@@ -342,11 +409,14 @@ def check_continuity(
         edge_gap, edge_angle = gap.max(axis=1), angle.max(axis=1)
         edge_min = angle.min(axis=1)
         sharp = edge_min >= sharp_angle_deg
+        closed = edge_gap <= gap_tolerance * diagonal
+        fading = _fading(angle, sharp, closed, np.array(pair_ends), g1_tolerance_deg, sharp_angle_deg)
         kind = np.where(
             sharp,
             "sharp",
-            np.where(edge_gap > gap_tolerance * diagonal, "open", np.where(edge_angle > g1_tolerance_deg, "G0", "G1")),
+            np.where(fading, "fading", np.where(~closed, "open", np.where(edge_angle > g1_tolerance_deg, "G0", "G1"))),
         )
+        sharp = sharp | fading  # left out of the smooth maxima and of the worst edges
         for k in counts:
             counts[k] = int(np.count_nonzero(kind == k))
         if (~sharp).any():
@@ -373,8 +443,10 @@ def check_continuity(
             for e in order[:worst]:
                 chosen.append(e)
                 worst_list.append(defect(e, by))
-        for e in [int(e) for e in np.argsort(-edge_angle, kind="stable") if sharp[e]][:worst]:
+        for e in [int(e) for e in np.argsort(-edge_angle, kind="stable") if kind[e] == "sharp"][:worst]:
             sharp_list.append(defect(e, angle))
+        for e in [int(e) for e in np.argsort(-edge_angle, kind="stable") if fading[e]][:worst]:
+            fading_list.append(defect(e, angle))
         if all_edges:
             table = [defect(e, angle if edge_angle[e] > 0 else gap) for e in range(len(pairs))]
 
@@ -399,6 +471,8 @@ def check_continuity(
         n_open_edges=counts["open"],
         n_sharp_edges=counts["sharp"],
         sharp_edges=tuple(sharp_list),
+        n_fading_edges=counts["fading"],
+        fading_edges=tuple(fading_list),
         sharp_angle_deg=sharp_angle_deg,
         g1_tolerance_deg=g1_tolerance_deg,
         gap_tolerance=gap_tolerance,

@@ -56,7 +56,8 @@ from export.brep import (
     bound_face,
     checked_patches,
     patch_components,
-    refuse_no_volume,
+    no_volume_components,
+    warn_no_volume,
     refuse_round_off,
     shape_tolerance,
 )
@@ -326,12 +327,13 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
     face_rows = [plan[1] if plan[0] == "patch" else int(plan[1].rows.flat[0]) for plan in faces_plan]
     volumes = _component_volumes(surface)
-    order = iter(volumes.tolist())
-    shape = assemble(builder, list(edges.values()), faces, topo, lambda solid: next(order) < 0.0, face_rows)
+    flat = no_volume_components(surface, volumes)
+    order = iter([None if i in flat else v < 0.0 for i, v in enumerate(volumes.tolist())])
+    shape = assemble(builder, list(edges.values()), faces, topo, lambda solid: next(order), face_rows)
+    warn_no_volume(surface, *patch_components(topo), flat)
     if check:
         from OCP.BRepCheck import BRepCheck_Analyzer
 
-        refuse_no_volume(surface, volumes)
         if not BRepCheck_Analyzer(shape).IsValid():
             refuse_round_off(surface)
             raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")

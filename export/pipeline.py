@@ -72,7 +72,7 @@ def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -
         shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
     else:
         shape = to_shape(surface)
-    warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
+    warn_folds(surface)  # after the B-rep: a refused surface gets its one line only
     stage(f"{STAGES[3]} {job.fmt}")
     write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
     return mesh.n_faces, surface.n_patches

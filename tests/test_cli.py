@@ -346,21 +346,31 @@ def test_subdivide_refuses_opensubdiv_rules_on_non_uniform_knots(tmp_path, run_c
     assert out.read_text() == "precious"
 
 
-@pytest.mark.parametrize(
-    "name, positions, message",
-    [
-        ("point", ["0 0 0"] * 8, "side 0 of the patch on face 0 has no length"),
-        ("flat", [f"{x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2, "encloses no volume"),
-    ],
-)
-def test_degenerate_geometry_is_refused_in_one_line(tmp_path, run_cli, name, positions, message):
-    """A cube whose control points collapse to a point or a plane: a valid mesh, but no solid."""
-    mesh = tmp_path / f"{name}.obj"
+def test_degenerate_geometry_is_refused_in_one_line(tmp_path, run_cli):
+    """A cube whose control points collapse to a point: a valid mesh, but no surface."""
+    mesh = tmp_path / "point.obj"
     faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
-    mesh.write_text("\n".join([f"v {p}" for p in positions] + faces) + "\n")
+    mesh.write_text("\n".join(["v 0 0 0"] * 8 + faces) + "\n")
     out = tmp_path / "out.step"
-    _assert_refused(run_cli("build", mesh, "-o", out), message)
+    _assert_refused(run_cli("build", mesh, "-o", out), "side 0 of the patch on face 0 has no length")
     assert not out.exists()
+
+
+def test_flat_closed_mesh_is_written_as_a_shell_with_a_warning(tmp_path, run_cli):
+    """A cube whose control points collapse to a plane: a closed surface of no volume is
+    written as a shell (one warning line naming it), not refused."""
+    mesh = tmp_path / "flat.obj"
+    faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
+    mesh.write_text("\n".join([f"v {x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2 + faces) + "\n")
+    out = tmp_path / "out.step"
+    result = run_cli("build", mesh, "-o", out, "-q")
+    assert result.returncode == 0, result.stderr
+    warning = [line for line in result.stderr.splitlines() if "encloses no volume" in line]
+    assert len(warning) == 1 and warning[0].startswith("nupatch: warning: ") and "a shell" in warning[0]
+    from export.continuity import check_continuity
+
+    report = check_continuity(out)
+    assert report.valid and report.n_solids == 0 and report.n_shells == 1
 
 
 def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):

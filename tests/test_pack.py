@@ -136,24 +136,32 @@ def test_inside_out_mesh_gives_a_positive_solid():
     assert props.Mass() == pytest.approx(-net_volume(surface), rel=1e-12)
 
 
-@pytest.mark.parametrize(
-    "name, positions, message",
-    [
-        ("point", ["0 0 0"] * 8, "side 0 of the patch on face 0 has no length"),
-        ("flat", [f"{x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2, "encloses no volume"),
-    ],
-)
-def test_pack_refuses_degenerate_geometry_as_build_does(tmp_path, run_cli, name, positions, message):
-    """A cube collapsed to a point or a plane is refused by ``build`` (test_cli); with --pack
-    it was written (exit 0): to_packed_shape skipped to_shape's input checks."""
+def test_pack_refuses_degenerate_geometry_as_build_does(tmp_path, run_cli):
+    """A cube collapsed to a point is refused by ``build`` (test_cli); with --pack it was
+    written (exit 0): to_packed_shape skipped to_shape's input checks."""
     from tests.helpers import assert_refused as _assert_refused
 
-    mesh = tmp_path / f"{name}.obj"
+    mesh = tmp_path / "point.obj"
     faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
-    mesh.write_text("\n".join([f"v {p}" for p in positions] + faces) + "\n")
+    mesh.write_text("\n".join(["v 0 0 0"] * 8 + faces) + "\n")
     out = tmp_path / "out.step"
-    _assert_refused(run_cli("build", mesh, "-o", out, "--pack"), message)
+    _assert_refused(run_cli("build", mesh, "-o", out, "--pack"), "side 0 of the patch on face 0 has no length")
     assert not out.exists()
+
+
+def test_pack_writes_a_flat_closed_mesh_as_a_shell_as_build_does(tmp_path, run_cli):
+    """A cube collapsed to a plane: with --pack too a shell and one warning line."""
+    mesh = tmp_path / "flat.obj"
+    faces = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
+    mesh.write_text("\n".join([f"v {x} {y} 0" for x in (0, 1) for y in (0, 1)] * 2 + faces) + "\n")
+    out = tmp_path / "out.step"
+    result = run_cli("build", mesh, "-o", out, "--pack", "-q")
+    assert result.returncode == 0, result.stderr
+    assert sum("encloses no volume" in line for line in result.stderr.splitlines()) == 1
+    from export.continuity import check_continuity
+
+    report = check_continuity(out)
+    assert report.valid and report.n_solids == 0 and report.n_shells == 1
 
 
 def twisted_torus(m: int = 8, n: int = 6) -> patching.ControlMesh:

@@ -1425,3 +1425,64 @@ def test_concave_corner_sector_takes_blz_concave_rule_without_a_tag():
     expected[list(others)] = 1 / 16
     np.testing.assert_allclose(row, expected, atol=1e-15)
     assert abs(gamma - (3 / 8 - math.cos(math.pi / 6) / 4)) > 0.2  # the convex reading differs
+
+
+# ---------------------------------------------------------------------------------------------
+# Interior valence-2 vertices under OpenSubdiv's rules (OpenSubdiv's regression shape
+# catmark_val2_interior has these configurations: a val-2 vertex inside a grid, two faces
+# sharing a chain of edges through val-2 vertices, semi-sharp chains s = 5 through them).
+
+
+def _val2_in_grid(s_ax, s_xc, s_cb, corner, mode):
+    """A 4 x 4 open grid whose interior quad (a, b, c, d) is split into (a, b, c, x) and
+    (a, x, c, d): x is an interior vertex of valence 2; a-x, x-c and c-b may be creased."""
+    grid = open_grid(4, 4)
+    rng = np.random.default_rng(7)
+    verts = np.array(grid.vertices, float)
+    verts[:, 2] += rng.uniform(-0.2, 0.2, len(verts))
+    faces = [list(map(int, grid.face(f))) for f in range(grid.n_faces)]
+    a, b, c, d = faces.pop(5)
+    x = len(verts)
+    verts = np.vstack([verts, (verts[a] + verts[c]) / 2 + [0.05, -0.03, 0.3]])
+    faces += [[a, b, c, x], [a, x, c, d]]
+    creases = {tuple(sorted(k)): s for k, s in (((a, x), s_ax), ((x, c), s_xc), ((c, b), s_cb)) if s}
+    return from_arrays(verts, faces, creases=creases, corners={x: corner} if corner else {}, interpolate_boundary=mode)
+
+
+def _hexagons_sharing_a_chain(s, mode):
+    """Two hexagons sharing the chain 0-1-2-3-4 (1, 2, 3 interior vertices of valence 2),
+    the chain creased with sharpness s."""
+    verts = np.array([[-1.0, 0, 0], [-0.4, 0.1, 0.1], [0, 0.2, 0.3], [0.4, 0.1, 0.1], [1, 0, 0], [0, 0, 1.2], [0, 0, -1.2]])
+    faces = [[0, 1, 2, 3, 4, 5], [6, 4, 3, 2, 1, 0]]
+    creases = {(i, i + 1): s for i in range(4)} if s else {}
+    return from_arrays(verts, faces, creases=creases, interpolate_boundary=mode)
+
+
+VAL2_CASES = [
+    ("grid_smooth", lambda: _val2_in_grid(0, 0, 0, 0, 1)),
+    ("grid_chain_s5", lambda: _val2_in_grid(5, 5, 5, 0, 1)),
+    ("grid_chain_fractional", lambda: _val2_in_grid(1.5, 0.5, 2.5, 0, 2)),
+    ("grid_dart_s1", lambda: _val2_in_grid(1, 0, 0, 0, 1)),
+    ("grid_sharp_and_corner", lambda: _val2_in_grid(10, 10, 0, 0.7, 1)),
+    ("grid_unequal_chain_corner", lambda: _val2_in_grid(5, 1.5, 0, 2, 2)),
+    ("hexagons_s5", lambda: _hexagons_sharing_a_chain(5, 1)),
+    ("hexagons_s1_5", lambda: _hexagons_sharing_a_chain(1.5, 2)),
+    ("hexagons_smooth", lambda: _hexagons_sharing_a_chain(0, 1)),
+]
+
+
+@pytest.mark.parametrize("creasing", ["uniform", "chaikin"])
+@pytest.mark.parametrize("name, make", VAL2_CASES, ids=[c[0] for c in VAL2_CASES])
+def test_opensubdiv_rules_at_interior_valence_2(name, make, creasing):
+    """Three steps at interior valence-2 vertices (smooth, darts, semi-sharp chains through
+    them, corners on them) against the loop reference: OpenSubdiv's smooth mask at n = 2 is
+    ``0 V + (E_0 + E_1)/4 + (F_0 + F_1)/4`` (catmarkScheme.h, (n-2)/n and 1/n^2), the crease
+    mask ``3/4 V + 1/8 (ends)`` reads both edges of the vertex, and the blend of a decaying
+    vertex is ``Crease::ComputeFractionalWeightAtVertex``'s.  (Checked once by hand against
+    OpenSubdiv 3.6.0 built from its sources, docs/fidelity.md.)"""
+    mesh = make()
+    for step in range(3):
+        S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method=creasing)
+        expected = reference_points(mesh, "opensubdiv", creasing)
+        assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * 10, f"step {step}"
+        mesh = child
