@@ -40,14 +40,25 @@ def basis(d: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bernstein values B^d_j(x), first and second derivatives: three (N, d+1) arrays
     (B' = d (B^{d-1}_{j-1} - B^{d-1}_j), B'' = d (d-1) (B^{d-2}_{j-2} - 2 B^{d-2}_{j-1} + B^{d-2}_j))."""
     x = np.asarray(x, dtype=np.float64)
-    b = bernstein(d, x)
+    b = _bernstein(d, x)
     b1 = np.zeros((x.size, d + 2))
-    b1[:, 1:-1] = bernstein(d - 1, x)
+    b1[:, 1:-1] = _bernstein(d - 1, x)
     db = d * (b1[:, :-1] - b1[:, 1:])
     b2 = np.zeros((x.size, d + 3))
-    b2[:, 2:-2] = bernstein(d - 2, x) if d >= 2 else 0.0
+    b2[:, 2:-2] = _bernstein(d - 2, x) if d >= 2 else 0.0
     ddb = d * (d - 1) * (b2[:, :-2] - 2 * b2[:, 1:-1] + b2[:, 2:]) if d >= 2 else np.zeros_like(b)
     return b, db, ddb
+
+
+def _bernstein(d: int, x: np.ndarray) -> np.ndarray:
+    """(N, d+1) B^d_j(x) by the triangle B^k_j = (1 - x) B^{k-1}_j + x B^{k-1}_{j-1}."""
+    out = np.zeros((x.size, d + 1))
+    out[:, 0] = 1.0
+    y = 1.0 - x
+    for k in range(1, d + 1):
+        out[:, 1 : k + 1] = out[:, 1 : k + 1] * y[:, None] + out[:, :k] * x[:, None]
+        out[:, 0] *= y
+    return out
 
 
 def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int = 1) -> tuple[np.ndarray, ...]:
@@ -58,10 +69,10 @@ def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int =
     bt, dbt, ddbt = basis(d, t)
 
     def along_t(b):  # sum_j b[n, j] nets[n, i, j, c] -> (N, d+1, 3)
-        return np.einsum("nj,nijc->nic", b, nets)
+        return (nets * b[:, None, :, None]).sum(axis=2)
 
     def along_s(b, rows):  # sum_i b[n, i] rows[n, i, c] -> (N, 3)
-        return np.einsum("ni,nic->nc", b, rows)
+        return (rows * b[:, :, None]).sum(axis=1)
 
     r0 = along_t(bt)
     r1 = along_t(dbt)
@@ -117,7 +128,7 @@ class SurfaceIndex:
     def tree_xy(self) -> cKDTree:
         return cKDTree(self.samples[0][:, :2])
 
-    def closest(self, c: np.ndarray, k: int = 4, iterations: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def closest(self, c: np.ndarray, k: int = 3, iterations: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest surface points to c (N, 3): (distance (N,), foot points (N, 3), patch (N,)).
 
         Newton's method on |S(s, t) - c|^2 / 2 in the patches of the k nearest samples, from
@@ -186,13 +197,15 @@ class SurfaceIndex:
                 top = np.full(len(cc), -np.inf)
                 np.maximum.at(top, owner, need)
                 cc[:, 2] = np.maximum(cc[:, 2], top)
+        active = np.arange(len(c))
         for _ in range(rounds):
-            d, p, _ = self.closest(c)
+            d, p, _ = self.closest(c[active])
             low = d < radius * (1.0 - 1e-9)
             if not low.any():
                 break
-            v = c[low] - p[low]
+            active, p = active[low], p[low]
+            v = c[active] - p
             rxy2 = np.sum(v[:, :2] ** 2, axis=1)
             dz = np.sqrt(np.maximum(radius * radius - rxy2, 0.0)) - v[:, 2]
-            c[low, 2] += np.maximum(dz, 0.0) + 1e-9 * radius
+            c[active, 2] += np.maximum(dz, 0.0) + 1e-9 * radius
         return c

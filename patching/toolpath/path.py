@@ -235,8 +235,8 @@ def tool_path(
 
     # Samples: spacing from the ball and the pass spacing on a plane (w ~ sqrt(8 R H)).
     flat_w = np.sqrt(8.0 * radius * scallop)
-    index = SurfaceIndex(nets, spacing=radius / 4.0)
-    step = 0.5 * np.sqrt(radius * tolerance)  # dense spiral sampling on the surface
+    index = SurfaceIndex(nets, spacing=max(radius / 8.0, surface.size / 1500.0))
+    step = 0.75 * np.sqrt(radius * tolerance)  # dense spiral sampling on the surface
 
     chunks = []
     for k, piece in enumerate(pieces):
@@ -247,7 +247,7 @@ def tool_path(
         p, su, sv = pm.evaluate(uv)
         n = unit_normals(su, sv)
         c = p + radius * n
-        lifted = index.drop(c, radius)
+        lifted = index.drop(c, radius, rounds=40)
         chunks.append((k, uv, p, n, c, lifted))
 
     # Machine pieces in a greedy nearest order; each may run backwards.
@@ -278,25 +278,26 @@ def tool_path(
         lifted_count += int(np.sum(c[:, 2] > c0[:, 2] + 1e-9 * radius))
         dense_count += len(c)
         keep = simplify(c, 0.5 * tolerance)
-        for _ in range(8):  # gouge check of every segment; add dense points where it fails
-            clear, worst = clearance(index, c[keep], check_step)
+        poly, pp, nn = c[keep], p[keep], n[keep]
+        for _ in range(12):  # gouge check of every segment; lifted midpoints where it fails
+            clear, _ = clearance(index, poly, check_step)
             bad = np.flatnonzero(clear < radius - tolerance)
             if bad.size == 0:
                 break
-            a, b = keep[bad], keep[bad + 1]
-            mid = (a + b) // 2
-            if np.all(b - a < 2):
-                break
-            keep = np.unique(np.concatenate([keep, mid[b - a >= 2]]))
+            mid = index.drop(0.5 * (poly[bad] + poly[bad + 1]), radius, rounds=40)
+            poly = np.insert(poly, bad + 1, mid, axis=0)
+            pp = np.insert(pp, bad + 1, 0.5 * (pp[bad] + pp[bad + 1]), axis=0)
+            nn = np.insert(nn, bad + 1, nn[bad], axis=0)
         min_clear = min(min_clear, float(clear.min()))
-        # chord error of the programmed polyline against the dense lifted spiral
-        seg_of = np.clip(np.searchsorted(keep, np.arange(len(c)), side="right") - 1, 0, len(keep) - 2)
-        chord = segment_distances(c, c[keep[seg_of]], c[keep[seg_of + 1]])
-        max_chord = max(max_chord, float(chord.max()))
+        # chord error: the dense spiral of lifted centres against the programmed polyline
+        # (nearest point of the polyline sampled at T / 5: an upper bound, by at most T / 10)
+        d, _ = cKDTree(densify(poly, 0.2 * tolerance)).query(c)
+        max_chord = max(max_chord, float(d.max()))
+        keep = np.arange(len(poly))
+        centres.append(poly)
+        contacts.append(pp)
+        normals.append(nn)
         piece_ids.append(np.full(len(keep), slot, dtype=np.int64))
-        centres.append(c[keep])
-        contacts.append(p[keep])
-        normals.append(n[keep])
 
     piece = np.concatenate(piece_ids)
     centres = np.concatenate(centres)
@@ -309,7 +310,9 @@ def tool_path(
         "lifted": lifted_count / max(dense_count, 1),
     }
     fine = SurfaceIndex(nets, spacing=flat_w / 4.0)
-    report["max_scallop"] = _scallop_check(fine, up_samples_mask(fine), centres, piece, radius, min(step, flat_w / 8.0))
+    report["max_scallop"], report["unreachable"] = _scallop_check(
+        fine, up_samples_mask(fine), centres, piece, radius, min(step, flat_w / 8.0), tolerance
+    )
     return ToolPath(
         piece=piece,
         centres=centres,
@@ -356,9 +359,22 @@ def up_samples_mask(index: SurfaceIndex) -> np.ndarray:
     return unit_normals(su, sv)[:, 2] >= UP
 
 
-def _scallop_check(index: SurfaceIndex, mask: np.ndarray, centres: np.ndarray, piece: np.ndarray, radius: float, step: float) -> float:
-    """Largest distance of an up-facing sample to the densified centre path, minus R."""
+def _scallop_check(
+    index: SurfaceIndex, mask: np.ndarray, centres: np.ndarray, piece: np.ndarray, radius: float, step: float, tolerance: float
+) -> tuple[float, float]:
+    """(largest distance of a reachable up-facing sample to the densified centre path minus R,
+    fraction of up-facing samples the ball cannot reach).
+
+    A sample p with unit normal n is reachable when the one ball of radius R touching the
+    surface there from outside, centred at p + R n, stays >= R - T from every sample (in a
+    concave corner tighter than the ball it does not, and no path can machine p)."""
+    pts, rows, st = index.samples
+    _, su, sv = evaluate_points(index.nets[rows[mask]], st[mask, 0], st[mask, 1])
+    p = pts[mask]
+    touch, _ = index.tree.query(p + radius * unit_normals(su, sv))
+    reach = touch >= radius - tolerance
     parts = np.split(centres, np.flatnonzero(np.diff(piece)) + 1)
     dense = np.concatenate([densify(x, step) for x in parts])
-    d, _ = cKDTree(dense).query(index.samples[0][mask])
-    return float(max(d.max() - radius, 0.0)) if d.size else 0.0
+    d, _ = cKDTree(dense).query(p[reach])
+    worst = float(max(d.max() - radius, 0.0)) if d.size else 0.0
+    return worst, float(1.0 - reach.mean()) if reach.size else 0.0
