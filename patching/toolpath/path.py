@@ -45,7 +45,8 @@ class ToolPath:
     piece: (N,) int64 piece of each point (pieces are machined in increasing order, each one
     continuous); centres: (N, 3) ball centres; tips: (N, 3) programmed tool tips (centre - R z);
     contacts: (N, 3) surface points the passes follow (before lifting); normals: (N, 3) unit
-    surface normals there.  pieces: the segmentation, piece_order[k] the index into pieces of
+    surface normals there; parameters: (N, 2) (u, v) of the contacts in their piece's
+    rectangle [0, nu] x [0, nv].  pieces: the segmentation, piece_order[k] the index into pieces of
     machined piece k.  report: figures from the check (``tool_path``)."""
 
     piece: np.ndarray
@@ -53,6 +54,7 @@ class ToolPath:
     tips: np.ndarray
     contacts: np.ndarray
     normals: np.ndarray
+    parameters: np.ndarray
     radius: float
     scallop: float
     tolerance: float
@@ -268,17 +270,17 @@ def tool_path(
         left.remove(k)
         at = (chunks[k][5][0] if rev else chunks[k][5][-1])[:2]
 
-    piece_ids, centres, contacts, normals = [], [], [], []
+    piece_ids, centres, contacts, normals, params = [], [], [], [], []
     max_chord, min_clear, lifted_count, dense_count = 0.0, np.inf, 0, 0
     check_step = np.sqrt(2.0 * radius * tolerance)
     for slot, (k, rev) in enumerate(zip(order, flip)):
         _, uv, p, n, c0, c = chunks[k]
         if rev:
-            p, n, c0, c = p[::-1], n[::-1], c0[::-1], c[::-1]
+            p, n, c0, c, uv = p[::-1], n[::-1], c0[::-1], c[::-1], uv[::-1]
         lifted_count += int(np.sum(c[:, 2] > c0[:, 2] + 1e-9 * radius))
         dense_count += len(c)
         keep = simplify(c, 0.5 * tolerance)
-        poly, pp, nn = c[keep], p[keep], n[keep]
+        poly, pp, nn, uu = c[keep], p[keep], n[keep], uv[keep]
         for _ in range(12):  # gouge check of every segment; lifted midpoints where it fails
             clear, _ = clearance(index, poly, check_step)
             bad = np.flatnonzero(clear < radius - tolerance)
@@ -288,6 +290,7 @@ def tool_path(
             poly = np.insert(poly, bad + 1, mid, axis=0)
             pp = np.insert(pp, bad + 1, 0.5 * (pp[bad] + pp[bad + 1]), axis=0)
             nn = np.insert(nn, bad + 1, nn[bad], axis=0)
+            uu = np.insert(uu, bad + 1, 0.5 * (uu[bad] + uu[bad + 1]), axis=0)
         min_clear = min(min_clear, float(clear.min()))
         # chord error: the dense spiral of lifted centres against the programmed polyline
         # (nearest point of the polyline sampled at T / 5: an upper bound, by at most T / 10)
@@ -297,6 +300,7 @@ def tool_path(
         centres.append(poly)
         contacts.append(pp)
         normals.append(nn)
+        params.append(uu)
         piece_ids.append(np.full(len(keep), slot, dtype=np.int64))
 
     piece = np.concatenate(piece_ids)
@@ -319,6 +323,7 @@ def tool_path(
         tips=centres - np.array([0.0, 0.0, radius]),
         contacts=np.concatenate(contacts),
         normals=np.concatenate(normals),
+        parameters=np.concatenate(params),
         radius=float(radius),
         scallop=float(scallop),
         tolerance=tolerance,
