@@ -31,7 +31,7 @@ def draw_toolpath(surface: BezierSurface, path: ToolPath, out: str | os.PathLike
     for k, piece in enumerate(path.pieces):
         for f in piece.faces.ravel():
             colour_of[int(f)] = k
-    cmap = plt.get_cmap("tab20")
+    palette = [c for i, c in enumerate(plt.get_cmap("tab20").colors) if i not in (14, 15)]  # no greys
     u = np.linspace(0.0, 1.0, samples)
     s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     quads, colours = [], []
@@ -40,7 +40,7 @@ def draw_toolpath(surface: BezierSurface, path: ToolPath, out: str | os.PathLike
         q = np.stack([pts[:, :-1, :-1], pts[:, 1:, :-1], pts[:, 1:, 1:], pts[:, :-1, 1:]], axis=3)
         for f, cell in zip(g.faces, q):
             k = colour_of.get(int(f))
-            c = (0.75, 0.75, 0.75, 1.0) if k is None else cmap(k % 20)
+            c = (0.75, 0.75, 0.75, 1.0) if k is None else (*palette[k % len(palette)], 1.0)
             quads.append(cell.reshape(-1, 4, 3))
             colours.append(np.tile(c, (cell.shape[0] * cell.shape[1], 1)))
     quads = np.concatenate(quads)
@@ -51,7 +51,7 @@ def draw_toolpath(surface: BezierSurface, path: ToolPath, out: str | os.PathLike
     starts = np.flatnonzero(np.r_[True, np.diff(path.piece) != 0])
     for a, b in zip(starts, np.r_[starts[1:], len(path.piece)]):
         c = path.contacts[a:b] + 0.02 * path.radius * path.normals[a:b]
-        ax.plot(c[:, 0], c[:, 1], c[:, 2], color="black", lw=0.5)
+        ax.plot(c[:, 0], c[:, 1], c[:, 2], color="black", lw=0.6)
     lo, hi = quads.reshape(-1, 3).min(axis=0), quads.reshape(-1, 3).max(axis=0)
     mid, half = (lo + hi) / 2, (hi - lo).max() / 2
     ax.set_xlim(mid[0] - half, mid[0] + half)

@@ -128,7 +128,7 @@ class SurfaceIndex:
     def tree_xy(self) -> cKDTree:
         return cKDTree(self.samples[0][:, :2])
 
-    def closest(self, c: np.ndarray, k: int = 3, iterations: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def closest(self, c: np.ndarray, k: int = 3, iterations: int = 5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest surface points to c (N, 3): (distance (N,), foot points (N, 3), patch (N,)).
 
         Newton's method on |S(s, t) - c|^2 / 2 in the patches of the k nearest samples, from
@@ -194,9 +194,11 @@ class SurfaceIndex:
             if pairs.size:
                 owner, idx, dxy = pairs["i"], pairs["j"], pairs["v"]
                 need = pts[idx, 2] + np.sqrt(np.maximum(radius * radius - dxy * dxy, 0.0))
-                top = np.full(len(cc), -np.inf)
-                np.maximum.at(top, owner, need)
-                cc[:, 2] = np.maximum(cc[:, 2], top)
+                order = np.argsort(owner, kind="stable")
+                owner, need = owner[order], need[order]
+                first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+                top = np.maximum.reduceat(need, first)
+                cc[owner[first], 2] = np.maximum(cc[owner[first], 2], top)
         active = np.arange(len(c))
         for _ in range(rounds):
             d, p, _ = self.closest(c[active])

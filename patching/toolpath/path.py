@@ -238,7 +238,7 @@ def tool_path(
     # Samples: spacing from the ball and the pass spacing on a plane (w ~ sqrt(8 R H)).
     flat_w = np.sqrt(8.0 * radius * scallop)
     index = SurfaceIndex(nets, spacing=max(radius / 8.0, surface.size / 1500.0))
-    step = 0.75 * np.sqrt(radius * tolerance)  # dense spiral sampling on the surface
+    step = np.sqrt(2.0 * radius * tolerance)  # dense spiral sampling: sagitta of a step <= R T kappa / 4
 
     chunks = []
     for k, piece in enumerate(pieces):
