@@ -17,11 +17,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import patching  # noqa: E402
-from export.gcode import machining_figures, safe_height, write_gcode  # noqa: E402
-from patching.toolpath import tool_path  # noqa: E402
+import patching
+from export.gcode import machining_figures, safe_height, write_gcode
+from patching.toolpath import tool_path
 
 #: (model, ball radius R, scallop H) in mm; T = H / 4.
 CASES = [

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from patching.errors import NupatchError, UnsupportedError
 
-__all__ = ["add_parser", "run", "parse_tool"]
+__all__ = ["add_parser", "parse_tool", "run"]
 
 DEFAULT_FEED = 1000.0
 

@@ -21,7 +21,7 @@ from patching.toolpath import ToolPath
 
 from .atomic import atomic_output
 
-__all__ = ["SUFFIXES", "RAPID_RATE", "safe_height", "gcode_lines", "write_gcode", "machining_figures"]
+__all__ = ["RAPID_RATE", "SUFFIXES", "gcode_lines", "machining_figures", "safe_height", "write_gcode"]
 
 SUFFIXES = (".nc", ".gcode")
 #: rapid rate assumed by the time estimate, mm/min.

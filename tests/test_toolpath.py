@@ -17,8 +17,8 @@ import patching
 from patching.evaluation import evaluate_nets, sample_surface
 from patching.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
-from patching.toolpath.path import _side_normals, up_faces
 from patching.toolpath.geometry import common_nets
+from patching.toolpath.path import _side_normals, up_faces
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"
@@ -66,7 +66,7 @@ def parse_gcode(text: str):
         code = re.sub(r"\(.*?\)", "", line).strip()
         if not code:
             continue
-        words = dict((w[0], w[1:]) for w in code.split())
+        words = {w[0]: w[1:] for w in code.split()}
         if "G" in words and words["G"] in ("0", "1") and any(k in words for k in "XYZ"):
             for axis, k in enumerate("XYZ"):
                 if k in words:
@@ -197,7 +197,7 @@ def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
         # turn every net into piece coordinates and check the grid's neighbours meet
         # pointwise along their shared sides (one map of the rectangle), with the patches'
         # own evaluator.
-        def side(i, j, which):
+        def side(i, j, which, p=p):
             net = np.rot90(coeff[int(p.faces[i, j])], -int(p.rotation[i, j]), axes=(0, 1))
             s, t = {"right": (np.ones(7), u), "left": (np.zeros(7), u), "top": (u, np.ones(7)), "bottom": (u, np.zeros(7))}[which]
             return evaluate_nets(net[None], s, t)[0]
@@ -230,18 +230,19 @@ def test_bump_grid_program_checks(bump_obj, tmp_path, run_cli):
 
 
 @pytest.mark.slow
-def test_l_bracket_program_checks(tmp_path, run_cli):
-    src = MODELS / "l_bracket.obj"
-    out = tmp_path / "lb.gcode"
+@pytest.mark.parametrize("name", ["l_bracket", "machined_bracket", "square_frame", "clamped_grid"])
+def test_shipped_model_program_checks(name, tmp_path, run_cli):
+    src = MODELS / f"{name}.obj"
+    out = tmp_path / f"{name}.gcode"
     r, h, t = 0.4, 0.02, 0.004
-    res = run_cli("toolpath", src, "-o", out, "--tool", f"ball:{r}", "--scallop", h, "--tolerance", t, "--json", "--picture", tmp_path / "lb.png")
+    res = run_cli("toolpath", src, "-o", out, "--tool", f"ball:{r}", "--scallop", h, "--tolerance", t, "--json", "--picture", tmp_path / "p.png")
     assert res.returncode == 0, res.stderr
     import json
 
     report = json.loads(res.stdout)
-    assert report["pieces"] >= 2
+    assert report["pieces"] >= (1 if name == "clamped_grid" else 2)
     check_program(src, out, r, h, t, report)
-    assert (tmp_path / "lb.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_python_api_spiral_enters_and_leaves_at_boundary_and_is_simple():

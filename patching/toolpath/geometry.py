@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from ..bernstein import bernstein, elevation_matrix_2d
 from ..surface import BezierSurface
 
-__all__ = ["common_nets", "basis", "evaluate_points", "SurfaceIndex"]
+__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points"]
 
 CHUNK = 8192
 

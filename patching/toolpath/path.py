@@ -31,7 +31,7 @@ from .geometry import SurfaceIndex, common_nets, evaluate_points, unit_normals
 from .segmentation import Piece, segment
 from .spiral import fermat_spiral
 
-__all__ = ["ToolPath", "tool_path", "UP", "check_parameters"]
+__all__ = ["UP", "ToolPath", "check_parameters", "tool_path"]
 
 #: smallest n_z of the surface that the tool machines from +Z.
 UP = 0.1
@@ -307,7 +307,7 @@ def tool_path(
     centres = np.concatenate(centres)
     report = {
         "pieces": len(pieces),
-        "points": int(len(centres)),
+        "points": len(centres),
         "path_length": float(sum(np.linalg.norm(np.diff(x, axis=0), axis=1).sum() for x in np.split(centres, np.flatnonzero(np.diff(piece)) + 1))),
         "max_chord_error": max_chord,
         "min_clearance": min_clear,

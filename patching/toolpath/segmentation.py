@@ -31,7 +31,7 @@ from ..features import sharp_edges
 from ..mesh import ControlMesh
 from ..topology import Topology
 
-__all__ = ["Piece", "segment", "DIRECTIONS"]
+__all__ = ["DIRECTIONS", "Piece", "segment"]
 
 #: grid offset of piece directions 0..3 (-v, +u, +v, -u).
 DIRECTIONS = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]])

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["levels", "fermat_spiral", "CORNER"]
+__all__ = ["CORNER", "fermat_spiral", "levels"]
 
 #: density factor that keeps a contour corner's diagonal within half a pass (module docstring).
 CORNER = 2.0 * np.sqrt(2.0) / (1.0 + np.sqrt(2.0))
