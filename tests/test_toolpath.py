@@ -18,7 +18,7 @@ from patching.evaluation import evaluate_nets, sample_surface
 from patching.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
 from patching.toolpath.geometry import common_nets
-from patching.toolpath.path import _side_normals, up_faces
+from patching.toolpath.path import side_normals, up_faces
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"
@@ -187,7 +187,7 @@ def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
     surface = patching.build(mesh)
     faces, nets, _ = common_nets(surface)
     up = up_faces(faces, nets)
-    pieces = segment(mesh, faces[up], _side_normals(mesh, faces, nets))
+    pieces = segment(mesh, faces[up], side_normals(mesh, faces, nets))
     covered = np.concatenate([p.faces.ravel() for p in pieces])
     assert np.array_equal(np.sort(covered), np.sort(faces[up]))  # every face in exactly one piece
     coeff = {int(f): c for g in surface.groups for f, c in zip(g.faces, g.coefficients)}

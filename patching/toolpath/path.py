@@ -196,7 +196,7 @@ def up_faces(faces: np.ndarray, nets: np.ndarray, samples: int = 9) -> np.ndarra
     return nz.max(axis=1) >= UP
 
 
-def _side_normals(mesh: ControlMesh, faces: np.ndarray, nets: np.ndarray) -> np.ndarray:
+def side_normals(mesh: ControlMesh, faces: np.ndarray, nets: np.ndarray) -> np.ndarray:
     """(n_faces, 4, 3) unit normal at the middle of each patch side (zero without a patch)."""
     mid = np.array([[0.5, 0.0], [1.0, 0.5], [0.5, 1.0], [0.0, 0.5]])
     k = len(nets)
@@ -233,7 +233,7 @@ def tool_path(
     if not np.any(up & quads):
         raise UnsupportedError(f"nothing faces up: no patch has a unit normal with n_z >= {UP}", "the whole surface")
     nets_of_face = {int(f): n for f, n in zip(faces, nets)}
-    pieces = segment(mesh, faces[up & quads], _side_normals(mesh, faces, nets), topo)
+    pieces = segment(mesh, faces[up & quads], side_normals(mesh, faces, nets), topo)
 
     # Samples: spacing from the ball and the pass spacing on a plane (w ~ sqrt(8 R H)).
     flat_w = np.sqrt(8.0 * radius * scallop)
