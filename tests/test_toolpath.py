@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 import patching
 from patching.evaluation import evaluate_nets, sample_surface
+from patching.features import sharp_edges
 from patching.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
 from patching.toolpath.geometry import common_nets
@@ -181,8 +182,10 @@ def test_segments_cross_detects_a_crossing():
 
 
 # -- segmentation ----------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["clamped_grid", "l_bracket", "square_frame"])
+@pytest.mark.parametrize("name", ["clamped_grid", "l_bracket", "square_frame", "machined_bracket"])
 def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
+    """Every up-facing face in exactly one piece; the cells of a piece meet pointwise along
+    their shared sides; no piece spans a sharp edge (the features' crease tags)."""
     mesh = patching.read_mesh(MODELS / f"{name}.obj")
     surface = patching.build(mesh)
     faces, nets, _ = common_nets(surface)
@@ -209,6 +212,17 @@ def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
                     assert np.abs(side(i, j, "right") - side(i + 1, j, "left")).max() < 1e-9 * scale
                 if j + 1 < nv:
                     assert np.abs(side(i, j, "top") - side(i, j + 1, "bottom")).max() < 1e-9 * scale
+    topo = patching.Topology(mesh)
+    sharp = sharp_edges(topo)
+    for p in pieces:
+        for a, b in [(p.faces[i, j], p.faces[i + 1, j]) for i in range(p.shape[0] - 1) for j in range(p.shape[1])] + [
+            (p.faces[i, j], p.faces[i, j + 1]) for i in range(p.shape[0]) for j in range(p.shape[1] - 1)
+        ]:
+            shared = np.intersect1d(mesh.face(int(a)), mesh.face(int(b)))
+            assert shared.size == 2
+            assert not sharp[topo.edge_id(int(shared[0]), int(shared[1]))]
+    if name == "machined_bracket":
+        assert sharp.any()
     if name == "clamped_grid":
         assert len(pieces) == 1 and pieces[0].shape in ((6, 4), (4, 6))
 

@@ -31,7 +31,7 @@ from .geometry import SurfaceIndex, common_nets, evaluate_points, unit_normals
 from .segmentation import Piece, segment
 from .spiral import fermat_spiral
 
-__all__ = ["UP", "ToolPath", "check_parameters", "tool_path"]
+__all__ = ["UP", "ToolPath", "check_parameters", "clearance", "densify", "side_normals", "simplify", "tool_path", "up_faces"]
 
 #: smallest n_z of the surface that the tool machines from +Z.
 UP = 0.1
@@ -221,7 +221,7 @@ def tool_path(
     max_scallop (largest distance of an up-facing sample to the densified path of centres
     minus R), max_chord_error (largest distance of the dense spiral of lifted centres to the
     programmed polyline), min_clearance (smallest distance of a densified centre to the
-    surface, >= R - T), lifted (fraction of centres raised by the drop-cutter)."""
+    surface, >= R - T), lifted (fraction of dense centres raised by more than T / 10)."""
     tolerance = check_parameters(radius, scallop, tolerance)
     topo = topology if topology is not None else Topology(mesh)
     faces, nets, _ = common_nets(surface)
@@ -277,7 +277,7 @@ def tool_path(
         _, uv, p, n, c0, c = chunks[k]
         if rev:
             p, n, c0, c, uv = p[::-1], n[::-1], c0[::-1], c[::-1], uv[::-1]
-        lifted_count += int(np.sum(c[:, 2] > c0[:, 2] + 1e-9 * radius))
+        lifted_count += int(np.sum(c[:, 2] > c0[:, 2] + 0.1 * tolerance))
         dense_count += len(c)
         keep = simplify(c, 0.5 * tolerance)
         poly, pp, nn, uu = c[keep], p[keep], n[keep], uv[keep]
