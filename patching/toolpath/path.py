@@ -218,10 +218,12 @@ def tool_path(
     <= H, chord error <= T (default H / 4), no gouge (module docstring; [FSLYJ] sec. 4.3).
 
     report keys: pieces, points, path_length (along the ball centres, inside pieces),
-    max_scallop (largest distance of an up-facing sample to the densified path of centres
-    minus R), max_chord_error (largest distance of the dense spiral of lifted centres to the
-    programmed polyline), min_clearance (smallest distance of a densified centre to the
-    surface, >= R - T), lifted (fraction of dense centres raised by more than T / 10)."""
+    max_scallop (largest distance of a reachable up-facing sample to the densified path of
+    centres minus R), unreachable (fraction of up-facing samples no ball of radius R touches
+    without gouging), max_chord_error (largest distance of the dense spiral of lifted centres
+    to the programmed polyline, an upper bound), min_clearance (certified smallest distance of
+    the centre path to the surface, >= R - T), lifted (fraction of dense centres raised by
+    more than T / 10)."""
     tolerance = check_parameters(radius, scallop, tolerance)
     topo = topology if topology is not None else Topology(mesh)
     faces, nets, _ = common_nets(surface)
