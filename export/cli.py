@@ -424,6 +424,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
     p.set_defaults(func=cmd_check)
 
+    from export.cli_toolpath import add_parser as _add_toolpath
+
+    _add_toolpath(sub)
+
     p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature")
     p.add_argument("source", metavar="MESH|STEP", help="control mesh (OBJ) or STEP file")
     p.add_argument("-o", "--output", metavar="OUT.png", help="image (default: the source with .png)")
