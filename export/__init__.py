@@ -32,15 +32,31 @@ def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
 
 
 def to_build123d(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
-    """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file."""
+    """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file;
+    an ``Edge`` on the exact limit of a ``patching.curves.curve.Curve``."""
     from .cad import to_build123d as _to_build123d
+
+    from patching.curves.curve import Curve
+
+    if isinstance(source, Curve):
+        from .curves import to_build123d as _curve_to_build123d
+
+        return _curve_to_build123d(source)
 
     return _to_build123d(source, angles, anchors, **options)
 
 
 def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhedron", **options):
-    """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape."""
+    """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape;
+    a ``Wire`` on the exact limit of a ``patching.curves.curve.Curve``."""
     from .cad import to_cadquery as _to_cadquery
+
+    from patching.curves.curve import Curve
+
+    if isinstance(source, Curve):
+        from .curves import to_cadquery as _curve_to_cadquery
+
+        return _curve_to_cadquery(source)
 
     return _to_cadquery(source, angles, anchors, **options)
 

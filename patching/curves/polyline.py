@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, MeshError, TagError
+from ..mesh import NupatchWarning
 
 __all__ = ["Polyline", "parse_polyline", "read_polyline"]
 
@@ -135,7 +136,7 @@ def parse_polyline(text: str, source: str = "<string>", name: str = "curve") -> 
                 s = _sharpness(args[4], v, loc) if nf == 4 else math.inf
                 vector_tags.append((v, vec, s, loc))
             else:
-                warnings.warn(f"{loc}: unknown tag '{tag}' ignored", stacklevel=2)
+                warnings.warn(f"unknown tag '{tag}' ignored ({loc})", NupatchWarning, stacklevel=2)
         elif key in _IGNORED:
             continue
         else:
