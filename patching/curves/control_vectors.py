@@ -21,7 +21,7 @@ Where the crease sits: odd d at the parameter of the vertex's B-spline centre (v
 even d at the knot between P_v and P_(v+1) (even-degree B-splines are centred on spans, not
 knots, so a vertex has no knot of its own; [KSD] sec. 4 notes that even-degree creases "are
 not so natural").  Sharpness s of a vector: for s >= 1 it takes part in the step and its
-child (V/2 at the same place) gets s - 1; for 0 < s < 1 its contribution is scaled by s and
+child (V/2 at the same place) gets s - 1 (kept while that is > 0); for 0 < s < 1 its contribution is scaled by s and
 it is dropped; s = inf keeps it for ever (a C0 crease in the limit).
 """
 
@@ -112,7 +112,7 @@ def vector_step(
 
     New points = A @ P + C @ V: A the uniform step, C the mask of N^_d ([KSD] Table 1) on the
     fine points whose B-splines lie inside N^_d's support, scaled by min(s, 1); new vectors =
-    H @ V, 1/2 of each vector with s >= 1 at the refined parameter (Table 1's caption).
+    H @ V, 1/2 of each vector with s > 1 at the refined parameter (Table 1's caption).
     """
     d = degree
     A = uniform_subdivision(n, d, closed)
@@ -143,7 +143,7 @@ def vector_step(
             rows.append(point_of[f])
             cols.append(e)
             vals.append(mask[k] * min(float(s), 1.0))
-        if s >= 1:
+        if s > 1:  # its child has sharpness s - 1 > 0 (s = 1: full this step, then dropped)
             keep.append(e)
     C = sp.coo_matrix((vals, (rows, cols)), shape=(n2, len(params))).tocsr()
     H = sp.coo_matrix((np.full(len(keep), 0.5), (np.arange(len(keep)), keep)), shape=(len(keep), len(params))).tocsr()
