@@ -107,7 +107,10 @@ def _write_iges(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
 
 
 def _write_dxf(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
-    import ezdxf
+    try:
+        import ezdxf
+    except ImportError:  # a dependency of build123d, so normally present
+        raise UnsupportedError("DXF output needs ezdxf (pip install 'ezdxf>=1.1,<2')", final.name) from None
 
     doc = ezdxf.new("R2010")
     doc.units = ezdxf.units.MM

@@ -192,3 +192,39 @@ def test_cubic_equals_opensubdiv_semi_sharp_rules(s, closed):
         )
         t = np.arange(m) / 16.0  # vertex i of level 4 sits at parameter i / 2^4
         assert np.abs(curve.evaluate(t) - lim_ref).max() < 1e-12 * 10
+
+
+@pytest.mark.parametrize(
+    "d, weights, denominator",
+    [(5, [-11, 10, 1], 12), (7, [-302, 245, 56, 1], 360)],  # [KSD] eq. (6) and (10)
+)
+def test_end_conditions_of_the_paper(d, weights, denominator):
+    """c(0) = P_0, c'(0) as printed, c''(0) = 0 at a sharp end (unit knot spacing)."""
+    from scipy.interpolate import BSpline
+
+    rng = np.random.default_rng(d)
+    P = rng.normal(size=(3 * d, 2))
+    lim = Curve(P, d, corners={0: math.inf, len(P) - 1: math.inf}).limit()
+    spline = BSpline(lim.knots, lim.poles, d)
+    assert np.allclose(spline(0.0), P[0], atol=1e-14)
+    expected = sum(w * P[k] for k, w in enumerate(weights)) / denominator
+    assert np.allclose(spline.derivative()(0.0), expected, atol=1e-12)
+    assert np.allclose(spline.derivative(2)(0.0), 0.0, atol=1e-11)
+
+
+def test_modified_quintic_rows_are_eq_7():
+    from patching.curves.creases import modified_quintic_step
+
+    n = 9
+    s = np.zeros(n)
+    s[4] = math.inf
+    A, child = modified_quintic_step(n, False, s)
+    rows = A[8:13] * 32  # vertex 4 is row 8: then the edge, vertex, edge, vertex rows after it
+    expected = np.zeros((5, n))
+    expected[0, 4] = 32
+    expected[1, [4, 5]] = 16
+    expected[2, [4, 5, 6]] = [6, 20, 6]
+    expected[3, [4, 5, 6, 7]] = [1, 15, 15, 1]
+    expected[4, [5, 6, 7]] = [6, 20, 6]
+    assert np.allclose(rows, expected, atol=1e-13)
+    assert child[8] == math.inf and np.allclose(A.sum(axis=1), 1.0)

@@ -217,3 +217,48 @@ def ghost_reflection(index: int, n: int, left: bool, right: bool) -> dict[int, f
     for k, w in ghost_reflection(2 * (n - 1) - index, n, left, right).items():
         out[k] = out.get(k, 0.0) - w
     return out
+
+
+def modified_quintic_step(n: int, closed: bool, sharpness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One step of the modified quintic scheme T~5 ([KSD] sec. 3.2.2, eq. (7)): dense (n' x n).
+
+    At a sharp vertex the vertex point is P_v ([32]/32) and the two adjacent edge points are
+    midpoints ([16, 16]/32); every other point takes the uniform quintic stencils
+    [6, 20, 6]/32 and [1, 15, 15, 1]/32 on its own side of the crease (P_v counted as an
+    ordinary point there).  0 < s < 1 blends these rows with the smooth ones by s; children of
+    sharp vertices get s - 1.  T~5 does not solve S M = M T: its limit has infinitely many
+    polynomial pieces near a crease, so it is only available by refinement (no exact export).
+    Open polygons: end vertices are sharp, the curve starts there.
+    """
+    s = np.asarray(sharpness, dtype=np.float64).copy()
+    if not closed:
+        s[[0, n - 1]] = np.inf
+    m = 2 * n if closed else 2 * n - 1
+    A = np.zeros((m, n))
+    for i in range(n):  # vertex points, row 2 i
+        nb = [(i - 1) % n, i, (i + 1) % n] if closed or 0 < i < n - 1 else None
+        smooth = np.zeros(n)
+        if nb is not None:
+            for k, w in zip(nb, (6, 20, 6)):
+                smooth[k] += w / 32
+        sharp = np.zeros(n)
+        sharp[i] = 1.0
+        w = 1.0 if s[i] >= 1 else s[i]
+        A[2 * i] = w * sharp + (1 - w) * smooth
+    for i in range(n if closed else n - 1):  # edge points between i and i + 1, row 2 i + 1
+        j = (i + 1) % n
+        mid = np.zeros(n)
+        mid[i] += 0.5
+        mid[j] += 0.5
+        smooth = np.zeros(n)
+        idx = [(i - 1) % n, i, j, (j + 1) % n]
+        ok = closed or (i >= 1 and j <= n - 2)
+        if ok:
+            for k, w in zip(idx, (1, 15, 15, 1)):
+                smooth[k] += w / 32
+        # the edge point next to a sharp vertex is the midpoint (weight of the sharper end)
+        w = 1.0 if not ok else min(1.0, max(min(s[i], 1.0), min(s[j], 1.0)))
+        A[2 * i + 1] = w * mid + (1 - w) * smooth
+    child = np.zeros(m)
+    child[0::2] = np.where(s >= 1, s - 1, 0.0)[: len(child[0::2])]
+    return A, child
