@@ -179,8 +179,8 @@ class Curve:
             c = Curve(P2, c.degree, c.closed, name=c.name, _sharpness=s2, _vector_state=vstate)
         return c
 
-    def operators(self, k: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-        """``(A, C)`` with points after k steps = A @ points + C @ vectors (sparse)."""
+    def _run(self, k: int):
+        """k steps at once: (A, C, H, curve) with points = A P + C V, vectors = H V."""
         n, m = len(self.points), len(self._vparams)
         A_tot = sp.identity(n, format="csr")
         C_tot = sp.csr_matrix((n, m))
@@ -193,7 +193,12 @@ class Curve:
             if H is not None:
                 H_tot = H @ H_tot
             c = Curve(P2, c.degree, c.closed, name=c.name, _sharpness=s2, _vector_state=vstate)
-        return A_tot.tocsr(), sp.csr_matrix(C_tot)
+        return A_tot.tocsr(), sp.csr_matrix(C_tot), sp.csr_matrix(H_tot), c
+
+    def operators(self, k: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """``(A, C)`` with points after k steps = A @ points + C @ vectors (sparse)."""
+        A, C, _, _ = self._run(k)
+        return A, C
 
     @property
     def steps_to_exact(self) -> int:
@@ -204,30 +209,14 @@ class Curve:
     def limit_operator(self) -> tuple[np.ndarray, sp.csr_matrix, sp.csr_matrix]:
         """``(knots, W, E)``: the exact limit's poles = W @ points + E @ vectors (sparse)."""
         L = self.steps_to_exact
-        A, C = self.operators(L)
-        c = self.refine(L)
+        A, C, H, c = self._run(L)
         n = len(c.points)
         if len(c._vparams):
             knots, W, E = vector_limit(n, c.degree, c.closed, c._vparams)
-            # vectors at level L are H @ V: recover H through the refined state
-            _, _, H_tot = self._vector_map(L)
-            return knots / 2.0**L, (W @ A).tocsr(), (W @ C + E @ H_tot).tocsr()
+            return knots / 2.0**L, (W @ A).tocsr(), (W @ C + E @ H).tocsr()
         knots, W = limit_operator(n, c.degree, c.closed, c.sharpness == math.inf)
-        E = sp.csr_matrix((W.shape[0], len(self._vparams)))
-        if len(self._vparams):  # vectors that all died before level L
-            E = (W @ C).tocsr()
-        return knots / 2.0**L, (W @ A).tocsr(), E
-
-    def _vector_map(self, k: int):
-        m = len(self._vparams)
-        H_tot = sp.identity(m, format="csr")
-        c = self
-        for _ in range(k):
-            A, C, H, P2, s2, vstate = c._step()
-            if H is not None:
-                H_tot = H @ H_tot
-            c = Curve(P2, c.degree, c.closed, name=c.name, _sharpness=s2, _vector_state=vstate)
-        return None, None, H_tot
+        # vectors that all died before level L live on in C
+        return knots / 2.0**L, (W @ A).tocsr(), sp.csr_matrix(W @ C)
 
     def limit(self) -> BSplineCurve:
         """The exact limit curve: one clamped B-spline of degree d (multiple knots at creases)."""
