@@ -6,3 +6,8 @@ S M = M T), ``runs`` (polygons cut at sharp vertices: refinement and exact limit
 ``control_vectors`` ([KSD] sec. 4), ``polyline`` (OBJ ``l`` + tags), ``curve`` (the Curve
 object).
 """
+
+from .curve import BSplineCurve, Curve
+from .polyline import Polyline, parse_polyline, read_polyline
+
+__all__ = ["BSplineCurve", "Curve", "Polyline", "parse_polyline", "read_polyline"]
