@@ -73,9 +73,10 @@ def _ghost_space(n: int, d: int, left: str, right: str) -> tuple[np.ndarray, np.
     lo = -c if left == CREASE else 0
     hi = n - 1 + c if right == CREASE else n - 1
     G = np.zeros((hi - lo + 1, n))
-    for row, i in enumerate(range(lo, hi + 1)):
+    G[-lo + np.arange(n), np.arange(n)] = 1.0
+    for i in [*range(lo, 0), *range(n, hi + 1)]:  # only the ghost points need reflecting
         for k, w in ghost_reflection(i, n, left == CREASE, right == CREASE).items():
-            G[row, k] += w
+            G[i - lo, k] += w
     h = (d + 1) // 2
     knots = np.arange(lo - h, hi + h + 1, dtype=np.float64) - (lo + c)
     return knots, G
@@ -198,13 +199,15 @@ def _ghost_refinement(n: int, d: int, left: str, right: str) -> sp.csr_matrix:
 def run_refinement(n: int, d: int, left: str, right: str, method: str | None = None) -> sp.csr_matrix:
     """One subdivision step of a run: (n' x n) sparse, rows = new points.
 
-    ``method``: ``"ghost"`` (odd d; default) uniform stencils on the reflected run;
-    ``"assembled"`` the solved crease stencils + uniform rows (default for even d and
+    ``method``: ``"ghost"`` (odd d) uniform stencils on the reflected run (default for short
+    odd runs); ``"assembled"`` the solved crease stencils + uniform rows (default for
     n >= 2 d + 2); ``"solved"`` the dense solve ``M_fine T = S M`` of the run's spline spaces
     (default for short even runs).
     """
     if method is None:
-        method = "ghost" if d % 2 else ("assembled" if n >= 2 * d + 2 else "solved")
+        # long runs: the solved stencils assembled (vectorised; equal to the ghost rule for odd
+        # d, tests/test_curves_creases.py); short odd runs: the ghost rule; short even: solved
+        method = "assembled" if n >= 2 * d + 2 else ("ghost" if d % 2 else "solved")
     if method == "ghost":
         return _ghost_refinement(n, d, left, right)
     if method == "assembled":
