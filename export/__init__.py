@@ -44,14 +44,28 @@ def to_step(surface: BezierSurface, path: str | os.PathLike) -> Path:
 
 
 def to_build123d(source, options: BuildOptions | None = None, **option_fields: str):
-    """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file."""
+    """A build123d ``Solid`` (closed) or ``Shell`` (open) from a surface, a mesh or a mesh file;
+    an ``Edge`` on the exact limit of a ``patching.curves.Curve``."""
+    from patching.curves.curve import Curve
+
+    if isinstance(source, Curve):
+        from export.curves import to_build123d as _curve_to_build123d
+
+        return _curve_to_build123d(source)
     from export.cad import to_build123d as _to_build123d
 
     return _to_build123d(source, options, **option_fields)
 
 
 def to_cadquery(source, options: BuildOptions | None = None, **option_fields: str):
-    """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open); ``.val()`` is the Shape."""
+    """A cadquery ``Workplane`` holding the Solid (closed) or Shell (open), ``.val()`` the Shape;
+    a ``Wire`` on the exact limit of a ``patching.curves.Curve``."""
+    from patching.curves.curve import Curve
+
+    if isinstance(source, Curve):
+        from export.curves import to_cadquery as _curve_to_cadquery
+
+        return _curve_to_cadquery(source)
     from export.cad import to_cadquery as _to_cadquery
 
     return _to_cadquery(source, options, **option_fields)

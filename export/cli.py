@@ -445,6 +445,10 @@ def _parser() -> argparse.ArgumentParser:
     _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_render)
+
+    from export import cli_curve
+
+    cli_curve.add_parser(sub)
     return parser
 
 

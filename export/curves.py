@@ -1,0 +1,184 @@
+"""Subdivision curves to files and CAD objects (``nupatch curve``, docs/cli.md).
+
+- ``.step .stp .iges .igs``: the exact limit (``Curve.limit()``) as one OpenCASCADE
+  ``Geom_BSplineCurve`` of degree d (clamped; knots of multiplicity d at sharp vertices) in an
+  edge; STEP AP214 in millimetres through ``export.step.write_step``, IGES through
+  IGESControl_Writer.
+- ``.dxf``: one non-rational SPLINE entity (ezdxf) per smooth run between sharp vertices,
+  each with n + d + 1 clamped knots.
+- ``.obj``: the polygon after ``steps`` subdivision steps as an ``l`` polyline (with its
+  remaining ``t corner`` tags); ``.svg``: that polygon as an SVG polyline (x, y; y up).
+
+Every writer goes through ``export.atomic.atomic_output`` (no partial file on failure).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from patching.curves.curve import BSplineCurve, Curve
+from patching.errors import OutputError, UnsupportedError
+
+from .atomic import atomic_output
+
+__all__ = [
+    "CURVE_FORMATS",
+    "to_geom_curve",
+    "to_edge",
+    "to_build123d",
+    "to_cadquery",
+    "write_curve",
+]
+
+
+def _xyz(poles: np.ndarray) -> np.ndarray:
+    poles = np.asarray(poles, dtype=np.float64)
+    if poles.shape[1] == 2:
+        poles = np.c_[poles, np.zeros(len(poles))]
+    return poles
+
+
+def to_geom_curve(spline: BSplineCurve | Curve):
+    """An OpenCASCADE ``Geom_BSplineCurve`` with the limit's poles, knots and degree."""
+    from OCP.Geom import Geom_BSplineCurve
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array1OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    if isinstance(spline, Curve):
+        spline = spline.limit()
+    poles = _xyz(spline.poles)
+    values, mults = np.unique(spline.knots, return_counts=True)
+    P = TColgp_Array1OfPnt(1, len(poles))
+    for i, p in enumerate(poles, start=1):
+        P.SetValue(i, gp_Pnt(*map(float, p)))
+    K = TColStd_Array1OfReal(1, len(values))
+    M = TColStd_Array1OfInteger(1, len(values))
+    for i, (v, m) in enumerate(zip(values, mults), start=1):
+        K.SetValue(i, float(v))
+        M.SetValue(i, int(m))
+    return Geom_BSplineCurve(P, K, M, int(spline.degree))
+
+
+def to_edge(spline: BSplineCurve | Curve):
+    """A ``TopoDS_Edge`` on the limit B-spline (valid: ``BRepCheck_Analyzer``)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
+
+    maker = BRepBuilderAPI_MakeEdge(to_geom_curve(spline))
+    if not maker.IsDone():
+        raise UnsupportedError("OpenCASCADE cannot make an edge of this curve (zero length?)")
+    return maker.Edge()
+
+
+def to_build123d(curve: Curve | BSplineCurve):
+    """A ``build123d.Edge`` on the exact limit (a sweep path or a loft section)."""
+    import build123d
+
+    return build123d.Edge(to_edge(curve))
+
+
+def to_cadquery(curve: Curve | BSplineCurve):
+    """A ``cadquery.Wire`` of the one edge on the exact limit (``Workplane.sweep(path)``)."""
+    import cadquery
+
+    return cadquery.Wire.assembleEdges([cadquery.Edge(to_edge(curve))])
+
+
+def _write_step(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
+    from .step import write_step_file
+
+    write_step_file(to_edge(curve), tmp, curve.name, final.name)
+
+
+def _write_iges(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
+    from OCP.IGESControl import IGESControl_Controller, IGESControl_Writer
+
+    IGESControl_Controller.Init_s()
+    writer = IGESControl_Writer("MM", 0)
+    if not writer.AddShape(to_edge(curve)):
+        raise OutputError("IGESControl_Writer.AddShape failed", final.name)
+    writer.ComputeModel()
+    if not writer.Write(str(tmp)):
+        raise OutputError("IGESControl_Writer.Write failed", final.name)
+
+
+def _write_dxf(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
+    try:
+        import ezdxf
+    except ImportError:  # a dependency of build123d, so normally present
+        raise UnsupportedError("DXF output needs ezdxf (pip install 'ezdxf>=1.1,<2')", final.name) from None
+
+    doc = ezdxf.new("R2010")
+    doc.units = ezdxf.units.MM
+    msp = doc.modelspace()
+    for piece in curve.limit().split_at_sharp():
+        spline = msp.add_spline(dxfattribs={"layer": curve.name or "curve"})
+        spline.dxf.degree = piece.degree
+        spline.control_points = _xyz(piece.poles).tolist()
+        spline.knots = [float(k) for k in piece.knots]
+    doc.saveas(tmp)
+
+
+def _refined(curve: Curve, steps: int) -> Curve:
+    return curve.refine(steps)
+
+
+def _write_obj(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
+    c = _refined(curve, steps)
+    lines = [f"# {curve.name}: degree {curve.degree} subdivision polygon after {steps} steps (nupatch curve)"]
+    lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in _xyz(c.points)]
+    idx = list(range(1, len(c.points) + 1)) + ([1] if c.closed else [])
+    lines.append("l " + " ".join(map(str, idx)))
+    for v, s in enumerate(c.sharpness):
+        if s > 0:
+            lines.append(f"t corner 1/1/0 {v} {'inf' if math.isinf(s) else repr(float(s))}")
+    tmp.write_text("\n".join(lines) + "\n")
+
+
+def _write_svg(curve: Curve, tmp: Path, final: Path, steps: int) -> None:
+    c = _refined(curve, steps)
+    P = _xyz(c.points)[:, :2]
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    size = float(max(hi - lo)) or 1.0
+    pad = 0.05 * size
+    pts = " ".join(f"{x:.9g},{-y:.9g}" for x, y in P)
+    tag = "polygon" if c.closed else "polyline"
+    w, h = hi - lo + 2 * pad
+    tmp.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{lo[0] - pad:.9g} {-hi[1] - pad:.9g} {w:.9g} {h:.9g}">\n'
+        f'  <{tag} points="{pts}" fill="none" stroke="black" stroke-width="{size / 500:.6g}"/>\n'
+        "</svg>\n"
+    )
+
+
+CURVE_FORMATS = {
+    ".step": _write_step,
+    ".stp": _write_step,
+    ".iges": _write_iges,
+    ".igs": _write_iges,
+    ".dxf": _write_dxf,
+    ".obj": _write_obj,
+    ".svg": _write_svg,
+}
+
+
+def write_curve(curve: Curve, path: str | os.PathLike, steps: int = 4) -> Path:
+    """Write ``curve`` to ``path`` by its suffix (``CURVE_FORMATS``), atomically.
+
+    ``steps``: subdivision steps of the ``.obj`` / ``.svg`` polygon (ignored by the exact
+    formats).  The geometry is computed before the file is opened, so bad input leaves none.
+    """
+    path = Path(path)
+    writer = CURVE_FORMATS.get(path.suffix.lower())
+    if writer is None:
+        raise OutputError(f"unknown curve format '{path.suffix}' (one of {', '.join(sorted(CURVE_FORMATS))})", str(path))
+    if path.suffix.lower() in (".step", ".stp", ".iges", ".igs", ".dxf"):
+        curve.limit()  # raise on bad input before any file exists
+    with atomic_output(path) as tmp:
+        writer(curve, tmp, path, steps)
+    return path

@@ -1,0 +1,264 @@
+"""Crease (and end) rules of degree d solved from S M = M T ([KSD] sec. 3.1-3.2.3).
+
+The half-line setting of [KSD] sec. 3.1: ``B`` are the B-splines of degree d over the knots
+``[0 x (d+1), 2, 4, 6, ...]`` (a crease or sharp end at t = 0; the other side of an interior
+crease is the mirror image), ``b`` the same over the halved knots, ``B = b S`` (S by knot
+insertion).  A subspace ``N = B M`` with subdivision matrix ``T`` (``N = n T``, ``n = b M``)
+exists iff
+
+    S M = M T                                                              [KSD] eq. (2)
+
+Structure imposed (the relaxed conditions of [KSD] sec. 3.2.1, generalised to any d):
+
+- ``J = d - floor((d - 1) / 2)`` crease functions N_0 .. N_(J-1) are combinations of
+  B_0 .. B_(d-1); N_j for j >= J is the uniform B-spline B_(j + d - J).  Column j of M has
+  support rows ``k <= j + floor((d - 1) / 2)`` (the band of (4), (8) and of M_4), row 0 of M is
+  ``e_0`` (only B_0 is non-zero at t = 0) and the rows of M sum to one (partition of unity).
+- T's row 0 is ``e_0`` (the crease point stays: ``c(0) = P_0``), rows ``1 .. r-1`` are
+  unknown stencils on the columns ``j <= (i + J) / 2``, every row ``i >= r`` is the *uniform*
+  stencil ``T_ij = binom(d + 1, i - 2 j + J) / 2^d`` even where it touches N_0 (the bold
+  entries of (4), (5), (9)).
+- The natural configuration at the crease is linear: every N_j has ``N_j^(2k)(0) = 0`` for
+  k = 1 .. floor((d - 1) / 2).  For odd d this follows from the structure (the spectra quoted
+  after (5) and (9): 1, 1/2, 1/8, 1/32, ...); for d = 4 the structure alone leaves a second
+  solution with spectrum 1, 1/2, 1/4, 1/16 (quadratic instead of cubic precision at the
+  crease), and the condition picks the paper's M_4, T_4.
+
+For given T entries the equations are linear in M; the few T entries (2 for d = 5, 5 for
+d = 7) are found by a least-squares solve of the remaining residual (variable projection),
+started from the uniform stencils, and the solution is accepted only if SM - MT vanishes to
+round-off.  ``r = J - 1`` irregular rows suffice for odd d (r = 1, 2, 3 for d = 3, 5, 7, as in
+(3), (5), (9)); even d needs ``r = J`` (the solve with J - 1 leaves a residual of 0.06 for
+d = 4, 0.016 for d = 6), the row count of the paper's T_4.
+
+Reading of the damaged text: in (4), the bold ``1 - m1 - m2`` entries are the row sums, and
+T_5's row ``t_1 t_2 32 - t_1 - t_2`` is a stencil summing to 32; the printed solutions (5),
+(8), (9) and M_4, T_4 are reproduced by this solve to round-off (tests/test_curves_creases.py).
+For odd d the result equals the ghost-point rule of [KSD] sec. 3.2.1 (uniform subdivision of
+the polygon extended by P_(-i) = 2 P_0 - P_i), ``ghost_reflection`` below.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import lru_cache
+from math import comb
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.optimize import least_squares
+
+from .knots import insert_knots_matrix
+
+__all__ = ["CreaseScheme", "crease_scheme", "half_line_subdivision", "ghost_reflection"]
+
+#: SM - MT must vanish to this (double round-off of sums of ~10 terms of size <= 1)
+SOLVE_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True)
+class CreaseScheme:
+    """The crease rule of degree d on the half line t >= 0 ([KSD] sec. 3).
+
+    ``M``: (d, J) the crease functions N_0..N_(J-1) in B_0..B_(d-1); ``T``: (r, c) the first
+    r (irregular) rows of the subdivision matrix (stencils on P_0, P_1, ...); every later row i
+    is the uniform stencil ``binom(d + 1, i - 2 j + J) / 2^d``.  ``M_full``, ``T_full``: the
+    solved finite sections (for checks: S M = M T with ``S = half_line_subdivision``).
+    """
+
+    degree: int
+    J: int
+    r: int
+    M: np.ndarray
+    T: np.ndarray
+    M_full: np.ndarray
+    T_full: np.ndarray
+    residual: float
+
+
+def _regular(d: int, J: int, i: int, j: int) -> float:
+    x = i - 2 * j + J
+    return comb(d + 1, x) / 2.0**d if 0 <= x <= d + 1 else 0.0
+
+
+def half_line_subdivision(degree: int, size: int) -> np.ndarray:
+    """The leading (size x size) block of S, ``B = b S`` over ``[0 x (d+1), 2, 4, ...]``.
+
+    Computed by inserting the knots 1, 3, 5, ... (Boehm); the block is closed (fine b_l,
+    l < size, only take coarse B_k with k <= (l + d) / 2 < size).
+    """
+    d = degree
+    L = size + d + 2
+    t = np.r_[np.zeros(d + 1), 2.0 * np.arange(1, L + d + 2)]
+    _, S = insert_knots_matrix(t, d, 2.0 * np.arange(L) + 1.0)
+    return S[:size, :size]
+
+
+@lru_cache(maxsize=None)
+def crease_scheme(degree: int) -> CreaseScheme:
+    """Solve S M = M T for the crease rule of degree ``degree`` (module docstring)."""
+    d = degree
+    c = (d - 1) // 2
+    J = d - c
+    K = 3 * d + 6  # coarse B's in the finite section
+    S = half_line_subdivision(d, K)
+    nN = K - (d - J)
+    free = [(k, j) for j in range(J) for k in range(1, d) if k <= j + c]
+    tk = np.r_[np.zeros(d + 1), 2.0 * np.arange(1, K + 1)]
+    eye = np.eye(len(tk) - d - 1)
+    # even derivatives at 0 of B_0..B_(K-1): rows (order 2, 4, ..., 2c)
+    D = np.array([[BSpline(tk, eye[k], d).derivative(2 * q)(0.0) for k in range(K)] for q in range(1, c + 1)])
+    M0 = np.zeros((K, nN))
+    for j in range(J, nN):
+        M0[j + d - J, j] = 1.0
+    M0[0, 0] = 1.0
+    rows_used, cols_used = K - 2 * d, nN - d  # equations away from the truncation
+
+    def solve(r: int):
+        tfree = [(i, j) for i in range(1, r) for j in range((i + J) // 2 + 1)]
+
+        def build_T(theta):
+            T = np.array([[_regular(d, J, i, j) for j in range(nN)] for i in range(nN)])
+            T[:r] = 0.0
+            T[0, 0] = 1.0
+            for (i, j), v in zip(tfree, theta):
+                T[i, j] = v
+            return T
+
+        def fit_M(theta):
+            T = build_T(theta)
+            E = np.zeros((len(free), K, nN))
+            for e, (k, j) in enumerate(free):
+                E[e, k, j] = 1.0
+            A = np.array([(S @ Ee - Ee @ T)[:rows_used, :cols_used].ravel() for Ee in E]).T
+            b = -(S @ M0 - M0 @ T)[:rows_used, :cols_used].ravel()
+            # partition of unity on the crease block's rows
+            Cs = np.zeros((d, len(free)))
+            for e, (k, j) in enumerate(free):
+                Cs[k, e] = 1.0
+            rs = (1.0 - M0.sum(axis=1))[:d]
+            # linear natural configuration: D^(2q) N_j (0) = 0
+            Dr, Db = [], []
+            for q in range(c):
+                for j in range(J):
+                    row = np.zeros(len(free))
+                    for e, (k, jj) in enumerate(free):
+                        if jj == j:
+                            row[e] = D[q, k]
+                    Dr.append(row)
+                    Db.append(-D[q] @ M0[:, j])
+            A2 = np.vstack([A, Cs] + ([np.array(Dr)] if Dr else []))
+            b2 = np.r_[b, rs, Db]
+            mu = np.linalg.lstsq(A2, b2, rcond=None)[0]
+            M = M0.copy()
+            for (k, j), v in zip(free, mu):
+                M[k, j] = v
+            return M, T, A2 @ mu - b2
+
+        def residual(theta):
+            sums = [sum(v for (i, _), v in zip(tfree, theta) if i == ii) - 1.0 for ii in range(1, r)]
+            return np.r_[fit_M(theta)[2], sums]
+
+        theta0 = np.array([_regular(d, J, i, j) for (i, j) in tfree])
+        if len(theta0):
+            theta = least_squares(residual, theta0, xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        else:
+            theta = theta0
+        M, T, res = fit_M(theta)
+        err = float(np.abs(S @ M - M @ T)[:rows_used, :cols_used].max())
+        err = max(err, float(np.abs(residual(theta)).max()) if len(theta) else err)
+        return M, T, err
+
+    for r in (J - 1, J):
+        if r < 1:
+            continue
+        M, T, err = solve(r)
+        if err < SOLVE_TOLERANCE:
+            # The solution is rational: snap to the nearest fractions of small denominator
+            # and keep them if they solve S M = M T better (round-off 1e-14 -> 1e-16).
+            Ms, Ts = _snap(M), _snap(T)
+            err_s = float(np.abs(S @ Ms - Ms @ Ts)[:rows_used, :cols_used].max())
+            if err_s <= err:
+                M, T, err = Ms, Ts, err_s
+            return CreaseScheme(d, J, r, M[:d, :J].copy(), T[:r, : J + 2].copy(), M, T, err)
+    raise RuntimeError(f"no crease scheme of degree {d} solves S M = M T (residual {err:.2e})")
+
+
+def _snap(A: np.ndarray) -> np.ndarray:
+    """Each entry replaced by the nearest fraction with denominator <= 10^5 if within 1e-11."""
+    out = A.copy()
+    for idx, x in np.ndenumerate(A):
+        f = Fraction(float(x)).limit_denominator(100000)
+        if abs(float(f) - x) < 1e-11:
+            out[idx] = float(f)
+    return out
+
+
+def ghost_reflection(index: int, n: int, left: bool, right: bool) -> dict[int, float]:
+    """Point ``index`` of a run ``P_0..P_(n-1)`` extended by odd reflection at crease ends.
+
+    ``P_(-i) = 2 P_0 - P_i`` at a left crease, ``P_(n-1+i) = 2 P_(n-1) - P_(n-1-i)`` at a right
+    one ([KSD] sec. 3.2.1 and 3.2.3, ghost points), applied until the index is inside; returns
+    the weights {run index: weight}.  An index beyond a free end raises ValueError.
+    """
+    if 0 <= index < n:
+        return {index: 1.0}
+    if index < 0:
+        if not left:
+            raise ValueError("index beyond a free end")
+        out = {0: 2.0}
+        for k, w in ghost_reflection(-index, n, left, right).items():
+            out[k] = out.get(k, 0.0) - w
+        return out
+    if not right:
+        raise ValueError("index beyond a free end")
+    out = {n - 1: 2.0}
+    for k, w in ghost_reflection(2 * (n - 1) - index, n, left, right).items():
+        out[k] = out.get(k, 0.0) - w
+    return out
+
+
+def modified_quintic_step(n: int, closed: bool, sharpness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One step of the modified quintic scheme T~5 ([KSD] sec. 3.2.2, eq. (7)): dense (n' x n).
+
+    At a sharp vertex the vertex point is P_v ([SSEL13]/32) and the two adjacent edge points are
+    midpoints ([16, 16]/32); every other point takes the uniform quintic stencils
+    [6, 20, 6]/32 and [1, 15, 15, 1]/32 on its own side of the crease (P_v counted as an
+    ordinary point there).  0 < s < 1 blends these rows with the smooth ones by s; children of
+    sharp vertices get s - 1.  T~5 does not solve S M = M T: its limit has infinitely many
+    polynomial pieces near a crease, so it is only available by refinement (no exact export).
+    Open polygons: end vertices are sharp, the curve starts there.
+    """
+    s = np.asarray(sharpness, dtype=np.float64).copy()
+    if not closed:
+        s[[0, n - 1]] = np.inf
+    m = 2 * n if closed else 2 * n - 1
+    A = np.zeros((m, n))
+    for i in range(n):  # vertex points, row 2 i
+        nb = [(i - 1) % n, i, (i + 1) % n] if closed or 0 < i < n - 1 else None
+        smooth = np.zeros(n)
+        if nb is not None:
+            for k, w in zip(nb, (6, 20, 6)):
+                smooth[k] += w / 32
+        sharp = np.zeros(n)
+        sharp[i] = 1.0
+        w = 1.0 if s[i] >= 1 else s[i]
+        A[2 * i] = w * sharp + (1 - w) * smooth
+    for i in range(n if closed else n - 1):  # edge points between i and i + 1, row 2 i + 1
+        j = (i + 1) % n
+        mid = np.zeros(n)
+        mid[i] += 0.5
+        mid[j] += 0.5
+        smooth = np.zeros(n)
+        idx = [(i - 1) % n, i, j, (j + 1) % n]
+        ok = closed or (i >= 1 and j <= n - 2)
+        if ok:
+            for k, w in zip(idx, (1, 15, 15, 1)):
+                smooth[k] += w / 32
+        # the edge point next to a sharp vertex is the midpoint (weight of the sharper end)
+        w = 1.0 if not ok else min(1.0, max(min(s[i], 1.0), min(s[j], 1.0)))
+        A[2 * i + 1] = w * mid + (1 - w) * smooth
+    child = np.zeros(m)
+    child[0::2] = np.where(s >= 1, s - 1, 0.0)[: len(child[0::2])]
+    return A, child

@@ -1,0 +1,235 @@
+"""The subdivision curve object: polygon, degree, sharp vertices, control vectors.
+
+``Curve(points, degree, closed, corners={v: s}, vectors={v: (V, s)})``; ``refine(k)`` gives the
+curve after k subdivision steps (a Curve again, sharpness decremented), ``limit()`` the exact
+limit as one clamped B-spline (knots, poles, degree), ``evaluate(t)`` points on it.
+
+The limit is exact: after ``L = ceil(max finite sharpness)`` steps every remaining crease is
+infinitely sharp, and the curve is then a B-spline of the refined polygon with knot
+multiplicity d at the sharp vertices (``runs.limit_operator``) or at the crease knots of the
+control vectors (``control_vectors.vector_limit``).  The parameter is measured in spans of the
+original polygon (the refined knots divided by 2^L).
+
+Rules for the tags:
+
+- an end vertex of an open polygon with sharpness > 0 is a sharp end (the curve starts
+  there, [KSD] sec. 3.1 end conditions); without a tag the curve covers the n - d full spans;
+- fractional sharpness of interior vertices needs an odd degree (``runs.semi_sharp_step``);
+  for even d the sharp and smooth steps give different point counts (the sharp vertex stays
+  one point on a knot, a smooth one splits in two), so there is no pair of points to blend;
+- corners and control vectors are not mixed on one curve (the paper treats them as two
+  alternative schemes; the interaction of a crease function with a crease rule is not
+  specified).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import BSpline
+
+from ..errors import MeshError, TagError, UnsupportedError
+from .control_vectors import crease_parameter, vector_limit, vector_step
+from .runs import limit_operator, semi_sharp_step
+from .uniform import MAX_DEGREE, MIN_DEGREE
+
+__all__ = ["Curve", "BSplineCurve"]
+
+
+@dataclass(frozen=True)
+class BSplineCurve:
+    """A clamped B-spline: ``knots`` (n + d + 1,), ``poles`` (n, dim), ``degree``."""
+
+    knots: np.ndarray
+    poles: np.ndarray
+    degree: int
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        return float(self.knots[0]), float(self.knots[-1])
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points at parameters ``t`` (scalar or array) in ``domain``."""
+        return BSpline(self.knots, self.poles, self.degree, extrapolate=False)(np.clip(t, *self.domain))
+
+    def split_at_sharp(self) -> list["BSplineCurve"]:
+        """One clamped B-spline per smooth run: split at the interior knots of multiplicity d
+        (the sharp vertices, where the pole before the knot group is the corner point)."""
+        d = self.degree
+        values, counts = np.unique(self.knots, return_counts=True)
+        cuts = [(v, int(np.searchsorted(self.knots, v, side="left")) - 1) for v, c in zip(values[1:-1], counts[1:-1]) if c >= d]
+        bounds = [(values[0], 0)] + cuts + [(values[-1], len(self.poles) - 1)]
+        out = []
+        for (a, pa), (b, pb) in zip(bounds[:-1], bounds[1:]):
+            inner = self.knots[(self.knots > a) & (self.knots < b)]
+            out.append(BSplineCurve(np.r_[np.full(d + 1, a), inner, np.full(d + 1, b)], self.poles[pa : pb + 1], d))
+        return out
+
+
+class Curve:
+    """A subdivision curve of degree 2..7 with semi-sharp vertices or control vectors ([KSD])."""
+
+    def __init__(
+        self,
+        points,
+        degree: int = 3,
+        closed: bool = False,
+        corners: dict[int, float] | None = None,
+        vectors: dict[int, tuple] | None = None,
+        name: str = "curve",
+        *,
+        _sharpness: np.ndarray | None = None,
+        _vector_state: tuple | None = None,
+    ) -> None:
+        P = np.asarray(points, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] not in (2, 3):
+            raise MeshError(f"points must be an (n, 2) or (n, 3) array, not {P.shape}")
+        if not np.isfinite(P).all():
+            raise MeshError("non-finite control point", f"vertex {int(np.argwhere(~np.isfinite(P))[0, 0])}")
+        n = len(P)
+        if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+            raise UnsupportedError(f"degree must be an integer, not {degree!r}")
+        if not MIN_DEGREE <= degree <= MAX_DEGREE:
+            raise UnsupportedError(f"degree {degree} is not supported ({MIN_DEGREE}..{MAX_DEGREE})")
+        if n < 2:
+            raise MeshError(f"a control polygon of {n} vertex needs at least 2")
+        self.points = P
+        self.degree = int(degree)
+        self.closed = bool(closed)
+        self.name = name
+        d = self.degree
+        if _sharpness is not None:
+            s = np.asarray(_sharpness, dtype=np.float64)
+        else:
+            s = np.zeros(n)
+            for v, value in (corners or {}).items():
+                if not 0 <= int(v) < n:
+                    raise TagError(f"corner on vertex {v}, which is not on the polygon ({n} vertices)")
+                value = float(value)
+                if math.isnan(value):
+                    raise TagError(f"sharpness of vertex {v} is NaN")
+                if value < 0:
+                    raise TagError(f"negative sharpness {value} of vertex {v}")
+                s[int(v)] = math.inf if value >= 10 else value
+            if not closed:
+                for end in (0, n - 1):
+                    if s[end] > 0:
+                        s[end] = math.inf
+        self.sharpness = s
+        if _vector_state is not None:
+            self._vparams, self._vectors, self._vsharp = _vector_state
+        else:
+            params, vecs, vs = [], [], []
+            for v, spec in (vectors or {}).items():
+                if not 0 <= int(v) < n:
+                    raise TagError(f"control vector on vertex {v}, which is not on the polygon ({n} vertices)")
+                if isinstance(spec, tuple) and len(spec) == 2 and np.ndim(spec[0]) == 1:
+                    vec, value = spec
+                else:
+                    vec, value = spec, math.inf
+                vec = np.asarray(vec, dtype=np.float64)[: P.shape[1]]
+                value = float(value)
+                if math.isnan(value) or value < 0:
+                    raise TagError(f"bad sharpness {value} of the control vector at vertex {v}")
+                if not np.isfinite(vec).all():
+                    raise TagError(f"non-finite control vector at vertex {v}")
+                params.append(crease_parameter(int(v), n, d, self.closed))
+                vecs.append(vec)
+                vs.append(math.inf if value >= 10 else value)
+            self._vparams = np.array(params, dtype=np.float64)
+            self._vectors = np.array(vecs, dtype=np.float64).reshape(-1, P.shape[1])
+            self._vsharp = np.array(vs, dtype=np.float64)
+        interior = s.copy()
+        if not closed:
+            interior[[0, n - 1]] = 0
+        if len(self._vparams) and (interior > 0).any():
+            raise UnsupportedError("corners and control vectors on one curve are not supported")
+        frac = np.flatnonzero((interior > 0) & (interior < math.inf) & (interior != np.floor(interior)))
+        if d % 2 == 0 and len(frac):
+            raise UnsupportedError(
+                f"fractional sharpness {interior[frac[0]]:g} needs an odd degree, not {d}", f"vertex {int(frac[0])}"
+            )
+        if not closed and n <= d and not (s[0] > 0 or s[-1] > 0):
+            raise MeshError(f"an open polygon of degree {d} without sharp ends needs more than {d} vertices, not {n}")
+
+    # ------------------------------------------------------------------ refinement
+    def _step(self):
+        n, d = len(self.points), self.degree
+        if len(self._vparams):
+            A, C, H, u2, s2 = vector_step(n, d, self.closed, self._vparams, self._vsharp)
+            P2 = A @ self.points + C @ self._vectors
+            return A, C, H, P2, self.sharpness_after(A.shape[0]), (u2, H @ self._vectors, s2)
+        A, s2 = semi_sharp_step(n, d, self.closed, self.sharpness)
+        return A, None, None, A @ self.points, s2, (self._vparams, self._vectors, self._vsharp)
+
+    def sharpness_after(self, n2: int) -> np.ndarray:
+        s = np.zeros(n2)
+        if not self.closed:
+            s[0], s[-1] = self.sharpness[0], self.sharpness[-1]
+        return s
+
+    def refine(self, k: int = 1) -> "Curve":
+        """The curve after ``k`` subdivision steps (same limit; sharpness decremented)."""
+        c = self
+        for _ in range(int(k)):
+            A, C, H, P2, s2, vstate = c._step()
+            c = Curve(P2, c.degree, c.closed, name=c.name, _sharpness=s2, _vector_state=vstate)
+        return c
+
+    def _run(self, k: int):
+        """k steps at once: (A, C, H, curve) with points = A P + C V, vectors = H V."""
+        n, m = len(self.points), len(self._vparams)
+        A_tot = sp.identity(n, format="csr")
+        C_tot = sp.csr_matrix((n, m))
+        H_tot = sp.identity(m, format="csr")
+        c = self
+        for _ in range(int(k)):
+            A, C, H, P2, s2, vstate = c._step()
+            C_tot = A @ C_tot + (C @ H_tot if C is not None else 0)
+            A_tot = A @ A_tot
+            if H is not None:
+                H_tot = H @ H_tot
+            c = Curve(P2, c.degree, c.closed, name=c.name, _sharpness=s2, _vector_state=vstate)
+        return A_tot.tocsr(), sp.csr_matrix(C_tot), sp.csr_matrix(H_tot), c
+
+    def operators(self, k: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """``(A, C)`` with points after k steps = A @ points + C @ vectors (sparse)."""
+        A, C, _, _ = self._run(k)
+        return A, C
+
+    @property
+    def steps_to_exact(self) -> int:
+        """L = ceil(largest finite sharpness): steps after which the limit is a B-spline."""
+        finite = [x for x in np.r_[self.sharpness, self._vsharp] if 0 < x < math.inf]
+        return int(math.ceil(max(finite))) if finite else 0
+
+    def limit_operator(self) -> tuple[np.ndarray, sp.csr_matrix, sp.csr_matrix]:
+        """``(knots, W, E)``: the exact limit's poles = W @ points + E @ vectors (sparse)."""
+        L = self.steps_to_exact
+        A, C, H, c = self._run(L)
+        n = len(c.points)
+        if len(c._vparams):
+            knots, W, E = vector_limit(n, c.degree, c.closed, c._vparams)
+            return knots / 2.0**L, (W @ A).tocsr(), (W @ C + E @ H).tocsr()
+        knots, W = limit_operator(n, c.degree, c.closed, c.sharpness == math.inf)
+        # vectors that all died before level L live on in C
+        return knots / 2.0**L, (W @ A).tocsr(), sp.csr_matrix(W @ C)
+
+    def limit(self) -> BSplineCurve:
+        """The exact limit curve: one clamped B-spline of degree d (multiple knots at creases)."""
+        knots, W, E = self.limit_operator()
+        poles = W @ self.points
+        if len(self._vparams):
+            poles = poles + E @ self._vectors
+        return BSplineCurve(knots, np.asarray(poles), self.degree)
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points of the limit curve at ``t`` (spans of the original polygon, from 0)."""
+        return self.limit().evaluate(t)
+
+    @property
+    def vectors(self) -> np.ndarray:
+        return self._vectors
