@@ -45,6 +45,8 @@ __all__ = ["FitReport", "FitResult", "fit", "check_triangles", "default_faces"]
 CENTROIDS_BELOW = 30
 #: Data points asked for per control face, at least (coarse triangles are sampled more).
 POINTS_PER_FACE = 16
+#: The tangential weight alpha of TDM (``solve``): its start, floor and ceiling.
+ALPHA_START, ALPHA_MIN, ALPHA_MAX = 1e-2, 1e-8, 1.0
 #: Surface samples per patch side for the surface -> input distance of the report.
 REPORT_SAMPLES = 8
 
@@ -162,10 +164,14 @@ def default_faces(n_triangles: int) -> int:
     return int(min(2000, max(96, n_triangles // 8)))
 
 
-def _data_points(v: np.ndarray, f: np.ndarray, n_faces: int) -> tuple[np.ndarray, np.ndarray]:
+def _data_points(v: np.ndarray, f: np.ndarray, n_faces: int, vertices_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(points, weights) of the module docstring, weights normalised to mean 1."""
     tri = v[f]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if vertices_only:
+        w = np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=v.shape[0])
+        w = np.maximum(w, 1e-12 * max(w.max(), 1e-300))
+        return v, w / w.mean()
     # a triangle larger than 1 / POINTS_PER_FACE of a control face's share of the area is
     # sampled on a barycentric lattice of order n (n^2 sub-triangles, one point at each one's
     # centroid), so that every patch sees enough points however coarse the input
@@ -217,7 +223,8 @@ def fit(
     max_iterations: int = 30,
     pdm_steps: int = 3,
     tolerance: float = 1e-2,
-    fairing: float = 1e-3,
+    fairing: float = 1e-6,
+    sampling: str = "auto",
     name: str = "fit",
 ) -> FitResult:
     """Fit the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1; module docstring).
@@ -229,6 +236,9 @@ def fit(
     the remesher is not called).
     max_iterations: most alternations; tolerance: stop when E falls by less than this
     fraction; fairing: weight of the step fairing relative to the data term (solve).
+    sampling: "auto" (vertices, centroids and lattice points of coarse triangles, module
+    docstring) or "vertices" (the input vertices only, weighted by a third of the incident
+    areas: for inputs whose vertices are samples of a surface and whose triangles are not).
     Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
     missing)."""
     start = time.perf_counter()
@@ -253,7 +263,9 @@ def fit(
     layout = PatchLayout.of(operator)
     matrix = operator.matrix.tocsr()
     laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
-    points, weights = _data_points(v, f, control_mesh.n_faces)
+    if sampling not in ("auto", "vertices"):
+        raise ValueError(f"sampling must be 'auto' or 'vertices', not {sampling!r}")
+    points, weights = _data_points(v, f, control_mesh.n_faces, sampling == "vertices")
 
     def energy(feet: FootPoints) -> float:
         return float(np.sum(weights * feet.distance**2))
@@ -263,27 +275,35 @@ def fit(
     errors, steps = [energy(feet)], []
     floor = (1e-13 * diagonal) ** 2 * weights.sum()
     pdm_left = pdm_steps
+    tried_tdm = False
+    alpha = ALPHA_START
     for _ in range(max_iterations):
         if errors[-1] <= floor:
             break
         method = "pdm" if pdm_left > 0 else "tdm"
-        newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method)
-        newfeet = project(layout, matrix @ newP, points, previous=feet)
-        e = energy(newfeet)
-        if method == "tdm" and not e < errors[-1]:
-            method = "pdm"  # TDM is no descent method: fall back on a point-distance step
-            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, "pdm")
+        tried_tdm = tried_tdm or method == "tdm"
+        while True:
+            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha)
             newfeet = project(layout, matrix @ newP, points, previous=feet)
             e = energy(newfeet)
+            if method == "pdm" or e < errors[-1]:
+                break
+            # TDM is no descent method: more of the point distance (Levenberg-Marquardt-like),
+            # and past ALPHA_MAX a point-distance step, which cannot raise E
+            alpha *= 100.0
+            if alpha > ALPHA_MAX:
+                method, alpha = "pdm", ALPHA_START
         if not e <= errors[-1]:  # cannot happen for PDM but round-off; stop rather than go up
             break
+        if method == "tdm":
+            alpha = max(alpha / 10.0, ALPHA_MIN)
         pdm_left -= 1
         drop = errors[-1] - e
         P, feet = newP, newfeet
         errors.append(e)
         steps.append(method)
         if drop <= tolerance * errors[-2]:
-            if pdm_left > 0:
+            if not tried_tdm:
                 pdm_left = 0  # point distance has stalled: go on with tangent distance
                 continue
             break

@@ -198,7 +198,7 @@ def project(
     the previous foot point, keeping the nearer."""
     x = np.asarray(points, dtype=np.float64)
     sp_, ss, st, spts = _samples(layout, coefficients, grid)
-    k = min(candidates if previous is None else 1, sp_.size)
+    k = min(candidates, sp_.size)
     _, idx = cKDTree(spts).query(x, k=k)
     idx = idx.reshape(x.shape[0], k)
     patch = sp_[idx].T.ravel()

@@ -100,7 +100,7 @@ def solve_step(
     laplacian: sp.csr_matrix,
     fairing: float,
     method: str = "pdm",
-    alpha: float = 0.05,
+    alpha: float = 1e-7,
 ) -> np.ndarray:
     """New control points (n, 3) for fixed foot points (module docstring)."""
     n_rows, n = matrix.shape
