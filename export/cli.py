@@ -522,6 +522,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--g1-solve", choices=G1_SOLVES, default="joint", help="as for build")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_render)
+
+    from export import cli_fit
+
+    cli_fit.add_parser(sub)
     return parser
 
 

@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import MeshError, NupatchError
 from ..mesh import ControlMesh, from_arrays
 from ..operator import SurfaceOperator, build_operator
 from ..surface import BezierSurface
@@ -254,12 +254,17 @@ def fit(
         t0 = time.perf_counter()
         qv, polygons = quad_remesh(v, f, target, remesher, face_normals=_face_normals(v, f))
         remesh_seconds = time.perf_counter() - t0
-        control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
         remesher_name = remesher if isinstance(remesher, str) else getattr(remesher, "__name__", "remesher")
+        try:
+            control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
+            topo = Topology(control_mesh)
+            operator = build_operator(control_mesh, topo)
+        except NupatchError as exc:
+            raise MeshError(f"the quad remesher's output is no usable control mesh: {exc.what}", remesher_name) from None
     else:
         remesher_name = "given"
-    topo = Topology(control_mesh)
-    operator = build_operator(control_mesh, topo)
+        topo = Topology(control_mesh)
+        operator = build_operator(control_mesh, topo)
     layout = PatchLayout.of(operator)
     matrix = operator.matrix.tocsr()
     laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
