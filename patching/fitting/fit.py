@@ -35,7 +35,7 @@ from ..operator import SurfaceOperator, build_operator
 from ..surface import BezierSurface
 from ..topology import Topology
 from .distance import mesh_distance
-from .projection import FootPoints, PatchLayout, evaluate, project
+from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
 from .remesh import Remesher, quad_remesh
 from .solve import solve_step, umbrella_laplacian
 
@@ -61,6 +61,7 @@ class FitReport:
     to the input triangles (``distance.mesh_distance``).
     errors: E after each alternation (the first entry: the start), non-increasing.
     steps: "pdm" or "tdm" per alternation.
+    timings: seconds spent per stage (remesh, operator, project, solve, report).
     """
 
     diagonal: float
@@ -80,6 +81,7 @@ class FitReport:
     remesher: str
     errors: list = field(default_factory=list)
     steps: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -208,6 +210,19 @@ def _lattice_centroids(n: int) -> np.ndarray:
     return np.column_stack([1.0 - ab.sum(axis=1), ab[:, 0], ab[:, 1]])
 
 
+def _boundary_vertices(f: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool, vertices on an edge of one triangle."""
+    e = np.sort(np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
+    keys, counts = np.unique(e, axis=0, return_counts=True)
+    out = np.zeros(n, dtype=bool)
+    out[keys[counts == 1].ravel()] = True
+    return out
+
+
+def _subset(feet: FootPoints, idx: np.ndarray) -> FootPoints:
+    return FootPoints(feet.patch[idx].copy(), feet.s[idx].copy(), feet.t[idx].copy(), feet.distance[idx].copy())
+
+
 def _face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
@@ -242,6 +257,7 @@ def fit(
     Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
     missing)."""
     start = time.perf_counter()
+    timings = {"remesh": 0.0, "operator": 0.0, "project": 0.0, "solve": 0.0, "report": 0.0}
     v, f = check_triangles(vertices, triangles, name)
     diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
     if not diagonal > 0:
@@ -253,7 +269,8 @@ def fit(
             raise MeshError(f"--faces must be at least 1, not {target}", name)
         t0 = time.perf_counter()
         qv, polygons = quad_remesh(v, f, target, remesher, face_normals=_face_normals(v, f))
-        remesh_seconds = time.perf_counter() - t0
+        remesh_seconds = timings["remesh"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
         remesher_name = remesher if isinstance(remesher, str) else getattr(remesher, "__name__", "remesher")
         try:
             control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
@@ -263,8 +280,10 @@ def fit(
             raise MeshError(f"the quad remesher's output is no usable control mesh: {exc.what}", remesher_name) from None
     else:
         remesher_name = "given"
+        t0 = time.perf_counter()
         topo = Topology(control_mesh)
         operator = build_operator(control_mesh, topo)
+    timings["operator"] = time.perf_counter() - t0
     layout = PatchLayout.of(operator)
     matrix = operator.matrix.tocsr()
     laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
@@ -275,8 +294,28 @@ def fit(
     def energy(feet: FootPoints) -> float:
         return float(np.sum(weights * feet.distance**2))
 
+    # Open boundaries: the input's boundary vertices are fitted by the surface's boundary
+    # curves (their feet held on the boundary sides, point distance), else the surface could
+    # reach past the input's boundary where no data point holds it.
+    sides = boundary_sides(operator)
+    on_boundary = np.zeros(points.shape[0], dtype=bool)
+    if sides.size:
+        on_boundary[: v.shape[0]] = _boundary_vertices(f, v.shape[0])
+    rim = np.flatnonzero(on_boundary)
+
+    def locate(P: np.ndarray, previous: FootPoints | None = None) -> FootPoints:
+        coefficients = matrix @ P
+        feet = project(layout, coefficients, points, previous=previous)
+        if rim.size:
+            before = None if previous is None else _subset(previous, rim)
+            edge = project_to_boundary(layout, coefficients, points[rim], sides, previous=before)
+            feet.patch[rim], feet.s[rim], feet.t[rim], feet.distance[rim] = edge.patch, edge.s, edge.t, edge.distance
+        return feet
+
     P = np.asarray(control_mesh.vertices, dtype=np.float64).copy()
-    feet = project(layout, matrix @ P, points)
+    t0 = time.perf_counter()
+    feet = locate(P)
+    timings["project"] += time.perf_counter() - t0
     errors, steps = [energy(feet)], []
     floor = (1e-13 * diagonal) ** 2 * weights.sum()
     pdm_left = pdm_steps
@@ -288,8 +327,12 @@ def fit(
         method = "pdm" if pdm_left > 0 else "tdm"
         tried_tdm = tried_tdm or method == "tdm"
         while True:
-            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha)
-            newfeet = project(layout, matrix @ newP, points, previous=feet)
+            t0 = time.perf_counter()
+            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha, point_distance=on_boundary)
+            t1 = time.perf_counter()
+            newfeet = locate(newP, feet)
+            timings["solve"] += t1 - t0
+            timings["project"] += time.perf_counter() - t1
             e = energy(newfeet)
             if method == "pdm" or e < errors[-1]:
                 break
@@ -312,6 +355,7 @@ def fit(
                 pdm_left = 0  # point distance has stalled: go on with tangent distance
                 continue
             break
+    t0 = time.perf_counter()
     surface = operator.evaluate(P)
     surface = BezierSurface(surface.groups, surface.topology, name, surface.size)
     coefficients = matrix @ P
@@ -320,6 +364,7 @@ def fit(
     sp_ = np.repeat(np.arange(layout.n_patches), gs.size)
     samples = evaluate(layout, coefficients, sp_, np.tile(gs, layout.n_patches), np.tile(gt, layout.n_patches))
     back = mesh_distance(v, f, samples)
+    timings["report"] = time.perf_counter() - t0
     report = FitReport(
         diagonal=diagonal,
         max_input_to_surface=float(feet.distance.max() / diagonal),
@@ -338,5 +383,6 @@ def fit(
         remesher=remesher_name,
         errors=errors,
         steps=steps,
+        timings=timings,
     )
     return FitResult(control_mesh.with_positions(P), operator, surface, report)

@@ -104,13 +104,20 @@ def _apply(u: np.ndarray, v: np.ndarray, nets: np.ndarray) -> np.ndarray:
 
 
 def _evaluate_nets(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int):
+    """Points (order 0), with S_s, S_t (1), and S_ss, S_st, S_tt (2) of per-point nets: the
+    contraction over i is done once per s-basis, then each is contracted over j."""
     d = nets.shape[1] - 1
     if order == 0:
         return (_apply(_bernstein(d, s), _bernstein(d, t), nets),)
     bs, dbs, ddbs = basis_derivatives(d, s)
     bt, dbt, ddbt = basis_derivatives(d, t)
-    pairs = [(bs, bt), (dbs, bt), (bs, dbt), (ddbs, bt), (dbs, dbt), (bs, ddbt)][: (1, 3, 6)[order]]
-    return tuple(_apply(u, v, nets) for u, v in pairs)
+    along = lambda u: np.einsum("mi,mijc->mjc", u, nets)
+    t0, t1 = along(bs), along(dbs)
+    contract = lambda v, tmp: np.einsum("mj,mjc->mc", v, tmp)
+    out = (contract(bt, t0), contract(bt, t1), contract(dbt, t0))
+    if order == 1:
+        return out
+    return out + (contract(bt, along(ddbs)), contract(dbt, t1), contract(ddbt, t0))
 
 
 def evaluate(layout: PatchLayout, coefficients: np.ndarray, patch: np.ndarray, s: np.ndarray, t: np.ndarray, order: int = 0):
@@ -184,6 +191,17 @@ def _newton(nets: np.ndarray, x: np.ndarray, s: np.ndarray, t: np.ndarray, itera
     return s, t, f
 
 
+def _refine(layout, coefficients, x, patch, s, t, iterations):
+    """Newton from (patch, s, t) for every point, per degree group: (s, t, squared distance)."""
+    f = np.empty(s.size)
+    for d in layout.degrees:
+        sel = np.flatnonzero(layout.degree[patch] == d)
+        if sel.size:
+            nets = layout.nets(coefficients, patch[sel], d)
+            s[sel], t[sel], f[sel] = _newton(nets, x[sel], s[sel], t[sel], iterations)
+    return s, t, f
+
+
 def project(
     layout: PatchLayout,
     coefficients: np.ndarray,
@@ -194,28 +212,83 @@ def project(
     iterations: int = 8,
 ) -> FootPoints:
     """Foot points of (m, 3) ``points`` on the patches (module docstring): Newton from the
-    ``candidates`` nearest grid samples; with ``previous``, from the nearest sample and from
-    the previous foot point, keeping the nearer."""
+    ``candidates`` nearest grid samples.  With ``previous``: Newton from the previous foot
+    points first, and the candidate search only for the points whose foot stopped on a patch
+    side (where the nearest point may lie on the neighbour); the nearest found is kept."""
     x = np.asarray(points, dtype=np.float64)
+    m = x.shape[0]
+    if previous is not None:
+        s, t = previous.s.copy(), previous.t.copy()
+        s, t, f = _refine(layout, coefficients, x, previous.patch, s, t, iterations)
+        feet = FootPoints(previous.patch.copy(), s, t, np.sqrt(f))
+        side = np.flatnonzero((s <= 0.0) | (s >= 1.0) | (t <= 0.0) | (t >= 1.0))
+        if side.size == 0:
+            return feet
+        again = project(layout, coefficients, x[side], None, candidates, grid, iterations)
+        better = again.distance < feet.distance[side]
+        idx = side[better]
+        feet.patch[idx], feet.s[idx], feet.t[idx], feet.distance[idx] = (
+            again.patch[better], again.s[better], again.t[better], again.distance[better])
+        return feet
     sp_, ss, st, spts = _samples(layout, coefficients, grid)
     k = min(candidates, sp_.size)
     _, idx = cKDTree(spts).query(x, k=k)
-    idx = idx.reshape(x.shape[0], k)
+    idx = idx.reshape(m, k)
     patch = sp_[idx].T.ravel()
     s, t = ss[idx].T.ravel().copy(), st[idx].T.ravel().copy()
-    xs = np.tile(x, (k, 1))
+    s, t, f = _refine(layout, coefficients, np.tile(x, (k, 1)), patch, s, t, iterations)
+    best = np.argmin(f.reshape(k, m), axis=0)
+    pick = best * m + np.arange(m)
+    return FootPoints(patch[pick], s[pick], t[pick], np.sqrt(f[pick]))
+
+
+def boundary_sides(operator) -> np.ndarray:
+    """(k, 2) int64 (patch, side) of the patch sides on the surface's open boundary (sides
+    whose B-rep edge only one side uses; ``surface.PatchTopology``), rows in layout order."""
+    topo = operator.topology
+    pieces = topo.pieces
+    open_edge = topo.edge_use_count == 1
+    sides = np.flatnonzero(np.add.reduceat(open_edge[pieces.edge].astype(np.int64), pieces.indptr[:-1]) > 0)
+    return np.stack([sides // 4, sides % 4], axis=1).astype(np.int64)
+
+
+def _side_parameters(side: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(s, t, ds/du, dt/du) along side k of the square (``surface``: side k runs from corner
+    k to corner k+1)."""
+    s = np.select([side == 0, side == 1, side == 2], [u, np.ones_like(u), 1.0 - u], np.zeros_like(u))
+    t = np.select([side == 0, side == 1, side == 2], [np.zeros_like(u), u, np.ones_like(u)], 1.0 - u)
+    ds = np.select([side == 0, side == 2], [np.ones_like(u), -np.ones_like(u)], np.zeros_like(u))
+    dt = np.select([side == 1, side == 3], [np.ones_like(u), -np.ones_like(u)], np.zeros_like(u))
+    return s, t, ds, dt
+
+
+def project_to_boundary(
+    layout: PatchLayout, coefficients: np.ndarray, points: np.ndarray, sides: np.ndarray,
+    previous: FootPoints | None = None, samples: int = 16, iterations: int = 8,
+) -> FootPoints:
+    """Foot points of (m, 3) points on the surface's open boundary (the ``sides`` of
+    ``boundary_sides``): nearest of ``samples`` points per side, then Gauss-Newton along the
+    side, u clamped to [0, 1]; with ``previous`` (feet on those sides), the nearer is kept."""
+    x = np.asarray(points, dtype=np.float64)
+    u0 = (np.arange(samples) + 0.5) / samples
+    sp_ = np.repeat(sides[:, 0], samples)
+    sd = np.repeat(sides[:, 1], samples)
+    uu = np.tile(u0, sides.shape[0])
+    s, t, _, _ = _side_parameters(sd, uu)
+    _, idx = cKDTree(evaluate(layout, coefficients, sp_, s, t)).query(x)
+    patch, side, u = sp_[idx], sd[idx], uu[idx].copy()
+    for _ in range(iterations):
+        s, t, ds, dt = _side_parameters(side, u)
+        p, su, sv = evaluate(layout, coefficients, patch, s, t, order=1)
+        tangent = su * ds[:, None] + sv * dt[:, None]
+        step = -np.einsum("ij,ij->i", tangent, p - x) / np.maximum(np.einsum("ij,ij->i", tangent, tangent), 1e-300)
+        u = np.clip(u + np.clip(step, -0.5, 0.5), 0.0, 1.0)
+    s, t, _, _ = _side_parameters(side, u)
+    dist = np.linalg.norm(evaluate(layout, coefficients, patch, s, t) - x, axis=1)
+    feet = FootPoints(patch, s, t, dist)
     if previous is not None:
-        patch = np.concatenate([patch, previous.patch])
-        s, t = np.concatenate([s, previous.s]), np.concatenate([t, previous.t])
-        xs = np.concatenate([xs, x])
-    f = np.empty(s.size)
-    for d in layout.degrees:
-        sel = np.flatnonzero(layout.degree[patch] == d)
-        if sel.size:
-            nets = layout.nets(coefficients, patch[sel], d)
-            s[sel], t[sel], f[sel] = _newton(nets, xs[sel], s[sel], t[sel], iterations)
-    rounds = f.size // x.shape[0]
-    f = f.reshape(rounds, -1)
-    best = np.argmin(f, axis=0)
-    pick = best * x.shape[0] + np.arange(x.shape[0])
-    return FootPoints(patch[pick], s[pick], t[pick], np.sqrt(f.ravel()[pick]))
+        old = np.linalg.norm(evaluate(layout, coefficients, previous.patch, previous.s, previous.t) - x, axis=1)
+        keep = old < dist
+        feet.patch[keep], feet.s[keep], feet.t[keep], feet.distance[keep] = (
+            previous.patch[keep], previous.s[keep], previous.t[keep], old[keep])
+    return feet

@@ -9,7 +9,9 @@ and foot points held fixed, one step minimises
     tangent distance (TDM):  sum_k w_k (S_k - x_k)^T Q_k (S_k - x_k),  Q_k = n_k n_k^T + alpha I
 
 (n_k the unit surface normal at the foot point: the tangent-distance approximation of SDM,
-[PLH02]; alpha keeps a little of the point distance so the tangential motion stays bounded)
+[PLH02]; alpha keeps a little of the point distance so the tangential motion stays bounded;
+points whose residual is not along the normal, feet stopped on the open boundary, keep
+Q_k = I)
 plus lambda |L (P - P_prev)|^2, L the umbrella Laplacian of the control mesh: a fairing of
 the step rather than of the shape, so that the system is well posed (L^T L adds a positive
 term on every direction that the data leave free) while the fixed point is the unbiased least
@@ -27,6 +29,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from .projection import FootPoints, PatchLayout, evaluate
+
+#: Below this |cos| between residual and normal, a point keeps the point distance in TDM.
+NORMAL_COSINE = 0.9
 
 __all__ = ["umbrella_laplacian", "bernstein_rows", "gram_blocks", "solve_step"]
 
@@ -101,6 +106,7 @@ def solve_step(
     fairing: float,
     method: str = "pdm",
     alpha: float = 1e-7,
+    point_distance: np.ndarray | None = None,
 ) -> np.ndarray:
     """New control points (n, 3) for fixed foot points (module docstring)."""
     n_rows, n = matrix.shape
@@ -115,23 +121,33 @@ def solve_step(
     if method != "tdm":
         raise ValueError(f"method must be 'pdm' or 'tdm', not {method!r}")
     coefficients = matrix @ previous
-    _, su, sv = evaluate(layout, coefficients, feet.patch, feet.s, feet.t, order=1)
+    on, su, sv = evaluate(layout, coefficients, feet.patch, feet.s, feet.t, order=1)
     nrm = np.cross(su, sv)
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    # A foot point stopped on the open boundary (or a patch side) has a residual that is not
+    # along the normal: there the tangent distance would ignore it, so it keeps the point
+    # distance (Q = I), which pulls the boundary out to the data.
+    r = on - data
+    rn = np.linalg.norm(r, axis=1)
+    off = np.abs(np.einsum("ij,ij->i", r, nrm)) < NORMAL_COSINE * rn
+    if point_distance is not None:
+        off |= point_distance
+    nrm[off] = 0.0
+    iso = np.where(off, 1.0, alpha)
     pairs = [(a, b) for a in range(3) for b in range(a, 3)]
-    ws = [weights * nrm[:, a] * nrm[:, b] for a, b in pairs] + [weights * alpha]
+    ws = [weights * nrm[:, a] * nrm[:, b] for a, b in pairs] + [weights * iso]
     grams = gram_blocks(layout, feet, ws, n_rows)
-    iso = mt @ grams[-1] @ matrix
+    iso_block = mt @ grams[-1] @ matrix
     blocks = [[None] * 3 for _ in range(3)]
     for (a, b), g in zip(pairs, grams[:-1]):
         block = mt @ g @ matrix
         if a == b:
-            block = block + iso
+            block = block + iso_block
         blocks[a][b] = block
         blocks[b][a] = block if a == b else block
     normal = sp.bmat(blocks, format="csr")
     lam = fairing * normal.diagonal().mean() / max(ltl.diagonal().mean(), 1e-300)
-    qx = weights[:, None] * (nrm * np.einsum("ij,ij->i", nrm, data)[:, None] + alpha * data)
+    qx = weights[:, None] * (nrm * np.einsum("ij,ij->i", nrm, data)[:, None] + iso[:, None] * data)
     rhs = (mt @ _bt_times(layout, feet, qx, n_rows)).T.ravel()
     fair = sp.block_diag([ltl] * 3, format="csr")
     rhs = rhs + lam * (fair @ previous.T.ravel())
