@@ -19,14 +19,14 @@ squares solution, which is what lets a sampled nupatch surface be recovered exac
 
 The normal matrix is assembled as M^T G M with G the block-diagonal Gram matrix of the
 Bernstein rows per patch ((d+1)^2 blocks, summed over the points of each patch in chunks), so
-no (points x control points) matrix is formed; it is solved by sparse LU (scipy ``spsolve``).
+no (points x control points) matrix is formed; it is solved by sparse LU or, for large control meshes, conjugate gradients (``_spd_solve``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import cg, splu
 
 from .projection import FootPoints, PatchLayout, evaluate
 
@@ -34,6 +34,30 @@ from .projection import FootPoints, PatchLayout, evaluate
 NORMAL_COSINE = 0.9
 
 __all__ = ["umbrella_laplacian", "bernstein_rows", "gram_blocks", "solve_step"]
+
+#: Systems with more unknowns than this are solved by conjugate gradients from the previous
+#: control points instead of sparse LU (whose fill grows fast with the control mesh).
+DIRECT_UNKNOWNS = 3000
+
+
+def _spd_solve(matrix: sp.spmatrix, rhs: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Solve the symmetric positive definite system: sparse LU with a symmetric fill-reducing
+    order up to DIRECT_UNKNOWNS unknowns, else Jacobi-preconditioned conjugate gradients from
+    ``start`` (the previous control points).  CG lowers the quadratic objective at every
+    iteration, so even a solve stopped early keeps the fit's descent property."""
+    rhs = np.asarray(rhs, dtype=np.float64)
+    if matrix.shape[0] <= DIRECT_UNKNOWNS:
+        lu = splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        return lu.solve(rhs)
+    a = sp.csr_matrix(matrix)
+    jacobi = sp.diags(1.0 / np.maximum(a.diagonal(), 1e-300))
+    columns = rhs.reshape(rhs.shape[0], -1)
+    x0 = np.asarray(start, dtype=np.float64).reshape(columns.shape)
+    out = np.empty_like(columns)
+    for c in range(columns.shape[1]):
+        out[:, c], _ = cg(a, columns[:, c], x0=x0[:, c], rtol=1e-10, maxiter=2000, M=jacobi)
+    return out.reshape(rhs.shape)
+
 
 def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
     """(n, n) L = I - D^-1 A over the control mesh's edges (e, 2)."""
@@ -117,7 +141,7 @@ def solve_step(
         normal = (mt @ g @ matrix).tocsr()
         lam = fairing * normal.diagonal().mean() / max(ltl.diagonal().mean(), 1e-300)
         rhs = mt @ _bt_times(layout, feet, weights[:, None] * data, n_rows) + lam * (ltl @ previous)
-        return np.asarray(spsolve((normal + lam * ltl).tocsc(), rhs)).reshape(n, 3)
+        return _spd_solve(normal + lam * ltl, rhs, previous).reshape(n, 3)
     if method != "tdm":
         raise ValueError(f"method must be 'pdm' or 'tdm', not {method!r}")
     coefficients = matrix @ previous
@@ -151,5 +175,5 @@ def solve_step(
     rhs = (mt @ _bt_times(layout, feet, qx, n_rows)).T.ravel()
     fair = sp.block_diag([ltl] * 3, format="csr")
     rhs = rhs + lam * (fair @ previous.T.ravel())
-    solution = spsolve((normal + lam * fair).tocsc(), rhs)
+    solution = _spd_solve(normal + lam * fair, rhs, previous.T.ravel())
     return np.asarray(solution).reshape(3, n).T.copy()
