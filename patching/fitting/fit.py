@@ -356,6 +356,9 @@ def fit(
                 continue
             break
     t0 = time.perf_counter()
+    # the report's input -> surface distances from a full search (no previous feet)
+    fresh = project(layout, matrix @ P, points)
+    feet = FootPoints(feet.patch, feet.s, feet.t, np.minimum(fresh.distance, feet.distance))
     surface = operator.evaluate(P)
     surface = BezierSurface(surface.groups, surface.topology, name, surface.size)
     coefficients = matrix @ P

@@ -21,6 +21,9 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
+#: A foot point farther than this many RMS distances is searched for again (``project``).
+OUTLIER = 3.0
+
 __all__ = ["PatchLayout", "FootPoints", "basis_derivatives", "evaluate", "project"]
 
 
@@ -221,7 +224,11 @@ def project(
         s, t = previous.s.copy(), previous.t.copy()
         s, t, f = _refine(layout, coefficients, x, previous.patch, s, t, iterations)
         feet = FootPoints(previous.patch.copy(), s, t, np.sqrt(f))
-        side = np.flatnonzero((s <= 0.0) | (s >= 1.0) | (t <= 0.0) | (t >= 1.0))
+        # search again where the foot stopped on a patch side (the nearest point may be on
+        # the neighbour) or lies far beyond the others (a foot left on a wrong patch)
+        d = feet.distance
+        far = d > OUTLIER * np.sqrt(np.mean(d**2))
+        side = np.flatnonzero((s <= 0.0) | (s >= 1.0) | (t <= 0.0) | (t >= 1.0) | far)
         if side.size == 0:
             return feet
         again = project(layout, coefficients, x[side], None, candidates, grid, iterations)
