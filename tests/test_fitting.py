@@ -262,6 +262,7 @@ def _independent_distances(tris: "trimesh.Trimesh", result) -> tuple[float, floa
     return d_in.max() / diag, rms(d_in) / diag, d_out.max() / diag, rms(d_out) / diag
 
 
+@pytest.mark.slow
 def test_cli_fit_writes_a_g1_solid(run_cli, tmp_path):
     pytest.importorskip("pynanoinstantmeshes")
     from export import check_continuity
@@ -269,7 +270,8 @@ def test_cli_fit_writes_a_g1_solid(run_cli, tmp_path):
     src = tmp_path / "ico.stl"
     trimesh.creation.icosphere(subdivisions=3).export(src)
     out = tmp_path / "ico.step"
-    proc = run_cli("fit", src, "-o", out, "--faces", "150", "--json", "-q")
+    saved = tmp_path / "ico_fit.obj"
+    proc = run_cli("fit", src, "-o", out, "--faces", "150", "--json", "-q", "--save-control-mesh", saved)
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
     assert report["closed"] and report["output"] == str(out)
@@ -279,6 +281,15 @@ def test_cli_fit_writes_a_g1_solid(run_cli, tmp_path):
     check = check_continuity(out)
     assert check.valid and check.n_solids == 1 and check.n_free_edges == 0
     assert check.g1, check.summary()
+    # the saved control mesh is the fitted one: refitting from it starts at its error
+    again = tmp_path / "again.step"
+    proc = run_cli("fit", src, "-o", again, "--control-mesh", saved, "--iterations", "1", "--json", "-q")
+    assert proc.returncode == 0, proc.stderr
+    second = json.loads(proc.stdout)
+    assert second["remesher"] == "given" and second["control_faces"] == report["control_faces"]
+    # the same error up to which foot points each search finds (the first run's feet come from
+    # refining earlier ones, the second's from a fresh search); a remeshed start is ~1000x off
+    assert second["errors"][0] == pytest.approx(report["errors"][-1], rel=1e-2)
 
 
 def _subdivided_triangles(path, steps: int):
