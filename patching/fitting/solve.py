@@ -18,25 +18,31 @@ squares solution, which is what lets a sampled nupatch surface be recovered exac
 
 The normal matrix is assembled as M^T G M with G the block-diagonal Gram matrix of the
 Bernstein rows per patch ((d+1)^2 blocks, summed over the points of each patch in chunks), so
-no (points x control points) matrix is formed; it is solved by sparse LU with a symmetric order (``_spd_solve``).
+no (points x control points) matrix is formed; it is solved by sparse LU with a symmetric order (``_spd_solve``), the large TDM
+systems by conjugate gradients preconditioned with the n x n point-distance factor.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from .projection import FootPoints, PatchLayout, evaluate
 
 __all__ = ["umbrella_laplacian", "bernstein_rows", "gram_blocks", "solve_step"]
 
+#: TDM systems (3 n unknowns) above this size are solved by preconditioned CG (``solve_step``).
+DIRECT_UNKNOWNS = 3000
+CG_TOLERANCE, CG_ITERATIONS = 1e-8, 300
+
+
 def _spd_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     """Solve the symmetric positive definite system by sparse LU with a symmetric
-    fill-reducing order (minimum degree on A + A^T) and diagonal pivots.  (Conjugate
-    gradients from the previous points were tried for large systems: with the small step
-    fairing the system is ill-conditioned along the surface, and CG took 4x longer than LU
-    on the 100k-triangle benchmark.)"""
+    fill-reducing order (minimum degree on A + A^T) and diagonal pivots.  (Plain
+    Jacobi-preconditioned CG was tried for large systems: with the small step fairing the
+    system is ill-conditioned along the surface, and it took 4x longer than LU on the
+    100k-triangle benchmark; ``solve_step`` preconditions the large TDM systems better.)"""
     lu = splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     return lu.solve(np.asarray(rhs, dtype=np.float64))
 
@@ -152,5 +158,17 @@ def solve_step(
     rhs = (mt @ _bt_times(layout, feet, qx, n_rows)).T.ravel()
     fair = sp.block_diag([ltl] * 3, format="csr")
     rhs = rhs + lam * (fair @ previous.T.ravel())
-    solution = _spd_solve(normal + lam * fair, rhs)
+    system = normal + lam * fair
+    if system.shape[0] <= DIRECT_UNKNOWNS:
+        solution = _spd_solve(system, rhs)
+    else:
+        # Large: conjugate gradients from the previous points, preconditioned by the
+        # coordinate-blind matrix K (x) I3, K the mean of the three diagonal blocks: one LU of
+        # size n instead of 3n (whose fill made it 20x dearer).  T <= (1 + alpha) K-ish and
+        # T >= alpha K-ish, so CG needs some sqrt(1/alpha) steps; stopped early it still lowers
+        # the step's objective, and the alternation keeps a TDM step only if E falls.
+        k = ((blocks[0][0] + blocks[1][1] + blocks[2][2]) / 3.0 + lam * ltl).tocsc()
+        lu = splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        pre = LinearOperator(system.shape, matvec=lambda r: lu.solve(np.asarray(r).reshape(3, n).T).T.ravel())
+        solution, _ = cg(system, rhs, x0=previous.T.ravel(), rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS, M=pre)
     return np.asarray(solution).reshape(3, n).T.copy()
