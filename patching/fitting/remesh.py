@@ -1,8 +1,8 @@
 """The quad remesher behind one function (``quad_remesh``), so that another can be plugged in.
 
 [FSLYJ] sec. 4.1 extracts the quadrilateral control mesh from the triangle mesh with QuadriFlow
-(its reference [10]).  Here the default is Instant Meshes (Jakob et al. 2015, the field-aligned
-method QuadriFlow builds on) through ``pynanoinstantmeshes`` (the ``[fit]`` extra; the choice is
+([HZN18], its reference [10]).  Here the default is Instant Meshes (Jakob, Tarini, Panozzo,
+Sorkine-Hornung 2015, the field-aligned method that QuadriFlow builds on) through ``pynanoinstantmeshes`` (the ``[fit]`` extra; the choice is
 justified in docs/fitting.md): its extraction ends with one regular subdivision step, so the
 output is pure quads, which is what the patching wants.
 
