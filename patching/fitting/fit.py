@@ -266,7 +266,7 @@ def fit(
     if control_mesh is None:
         target = int(faces) if faces is not None else default_faces(f.shape[0])
         if target < 1:
-            raise MeshError(f"--faces must be at least 1, not {target}", name)
+            raise MeshError(f"the control mesh needs at least 1 face, not {target}", name)
         t0 = time.perf_counter()
         qv, polygons = quad_remesh(v, f, target, remesher, face_normals=_face_normals(v, f))
         remesh_seconds = timings["remesh"] = time.perf_counter() - t0
