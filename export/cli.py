@@ -449,6 +449,9 @@ def _parser() -> argparse.ArgumentParser:
     from export import cli_curve
 
     cli_curve.add_parser(sub)
+    from export import cli_fit
+
+    cli_fit.add_parser(sub)
     return parser
 
 

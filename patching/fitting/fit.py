@@ -1,0 +1,391 @@
+"""Fitting the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1).
+
+Pipeline: a quad control mesh from the triangle mesh (``remesh.quad_remesh``; or a given one),
+uniform knot intervals (the paper's choice), the operator M (``build_operator``), foot points
+of the data points on the patches (``projection.project``), then alternation of least-squares
+solves for the control points with the foot points fixed (``solve.solve_step``) and foot-point
+updates with the control points fixed, until the error stops falling.
+
+The error of an alternation is E = sum_k w_k |S(foot_k) - x_k|^2 (weighted squared point
+distance, the foot points re-projected).  The first steps minimise the point distance (PDM),
+which can only lower E: the solve minimises E plus a step fairing that is 0 at the old points,
+and the projection keeps each old foot point unless it finds a nearer one.  Later steps use
+the tangent distance (TDM, the first-order approximation of [PLH02]'s squared-distance
+minimisation), which converges much faster but is not a descent method for E: a TDM step is
+kept only when it lowers E, else a PDM step is taken, and the fit stops when neither lowers E
+by more than ``tolerance`` of it.  So the recorded errors never increase.
+
+Data points: the input vertices, and the triangle centroids while the triangles are fewer
+than ``CENTROIDS_BELOW`` per control face; weights are the triangles' areas shared out
+(a vertex gets a twelfth of each incident triangle's area, a centroid three quarters, an
+exact quadrature for linear functions; vertices alone get a third).
+"""
+
+from __future__ import annotations
+
+import time
+import json
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..errors import MeshError, NupatchError
+from ..mesh import ControlMesh, from_arrays
+from ..operator import SurfaceOperator, build_operator
+from ..surface import BezierSurface
+from ..topology import Topology
+from .distance import mesh_distance
+from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
+from .remesh import Remesher, quad_remesh
+from .solve import solve_step, umbrella_laplacian
+
+__all__ = ["FitReport", "FitResult", "fit", "check_triangles", "default_faces"]
+
+#: Triangle centroids join the data points while there are fewer triangles than this per control face.
+CENTROIDS_BELOW = 30
+#: Data points asked for per control face, at least (coarse triangles are sampled more).
+POINTS_PER_FACE = 16
+#: The tangential weight alpha of TDM (``solve``): its start, floor and ceiling.
+ALPHA_START, ALPHA_MIN, ALPHA_MAX = 1e-2, 1e-8, 1.0
+#: Surface samples per patch side for the surface -> input distance of the report.
+REPORT_SAMPLES = 8
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """Distances relative to the input's bounding-box diagonal, both ways; errors per alternation.
+
+    max_input_to_surface / rms_input_to_surface: over the data points (input vertices, and
+    triangle centroids when used), to their foot points on the spline.
+    max_surface_to_input / rms_surface_to_input: over a REPORT_SAMPLES^2 grid of every patch,
+    to the input triangles (``distance.mesh_distance``).
+    errors: E after each alternation (the first entry: the start), non-increasing.
+    steps: "pdm" or "tdm" per alternation.
+    timings: seconds spent per stage (remesh, operator, project, solve, report).
+    """
+
+    diagonal: float
+    max_input_to_surface: float
+    rms_input_to_surface: float
+    max_surface_to_input: float
+    rms_surface_to_input: float
+    iterations: int
+    seconds: float
+    remesh_seconds: float
+    input_vertices: int
+    input_triangles: int
+    data_points: int
+    control_vertices: int
+    control_faces: int
+    patches: int
+    remesher: str
+    errors: list = field(default_factory=list)
+    steps: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return json.dumps(self.as_dict(), indent=indent)
+
+    def summary(self) -> str:
+        return "\n".join(
+            [
+                f"input: {self.input_vertices} vertices, {self.input_triangles} triangles, diagonal {self.diagonal:.6g}",
+                f"control mesh: {self.control_vertices} vertices, {self.control_faces} faces ({self.remesher}), {self.patches} patches",
+                f"input -> surface: max {self.max_input_to_surface:.3e}, rms {self.rms_input_to_surface:.3e} of the diagonal",
+                f"surface -> input: max {self.max_surface_to_input:.3e}, rms {self.rms_surface_to_input:.3e} of the diagonal",
+                f"{self.iterations} alternations ({' '.join(self.steps)}), {self.seconds:.2f} s (remesher {self.remesh_seconds:.2f} s)",
+            ]
+        )
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """The fitted control mesh (uniform intervals), its operator, surface and report."""
+
+    control_mesh: ControlMesh
+    operator: SurfaceOperator
+    surface: BezierSurface
+    report: FitReport
+
+
+def check_triangles(vertices, triangles, name: str = "input") -> tuple[np.ndarray, np.ndarray]:
+    """The input as (n, 3) float64 vertices and (t, 3) int64 triangles, or MeshError naming the
+    problem: not triangles, fewer than 4, a non-finite coordinate, an index out of range, a
+    triangle repeating a vertex, an edge of more than two triangles (non-manifold), or two
+    neighbouring triangles of opposite orientation."""
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"vertices are not numbers: {exc}", name) from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {v.shape}", name)
+    try:
+        f = np.asarray(triangles)
+    except ValueError:
+        raise MeshError("faces of different sizes: fit takes a triangle mesh", name) from None
+    if f.dtype == object or f.ndim != 2:
+        raise MeshError("faces of different sizes: fit takes a triangle mesh", name)
+    if f.shape[1] != 3:
+        raise MeshError(f"faces have {f.shape[1]} vertices: fit takes a triangle mesh", name)
+    if not np.issubdtype(f.dtype, np.integer):
+        raise MeshError("triangle vertex ids must be integers", name)
+    f = f.astype(np.int64)
+    if f.shape[0] < 4:
+        raise MeshError(f"{f.shape[0]} triangles: at least 4 are needed to fit a surface", name)
+    if f.min() < 0 or f.max() >= v.shape[0]:
+        k = int(np.flatnonzero((f < 0).any(axis=1) | (f >= v.shape[0]).any(axis=1))[0])
+        raise MeshError(f"triangle {k} uses a vertex id out of range (there are {v.shape[0]} vertices)", f"{name}, triangle {k}")
+    used = np.unique(f)
+    bad = used[~np.isfinite(v[used]).all(axis=1)]
+    if bad.size:
+        raise MeshError(f"non-finite coordinate of vertex {int(bad[0])}", f"{name}, vertex {int(bad[0])}")
+    rep = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
+    if rep.size:
+        raise MeshError(f"triangle {int(rep[0])} repeats a vertex", f"{name}, triangle {int(rep[0])}")
+    directed = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
+    keys, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    if counts.max() > 2:
+        a, b = (int(x) for x in keys[np.argmax(counts)])
+        raise MeshError(f"non-manifold edge {a}-{b} shared by {int(counts.max())} triangles", f"{name}, edge {a}-{b}")
+    dkeys, dcounts = np.unique(directed, axis=0, return_counts=True)
+    if dcounts.max() > 1:
+        a, b = (int(x) for x in dkeys[np.argmax(dcounts)])
+        raise MeshError(f"triangles on both sides of edge {a}-{b} run the same way: inconsistent orientation", f"{name}, edge {a}-{b}")
+    # keep only used vertices
+    remap = np.full(v.shape[0], -1, dtype=np.int64)
+    remap[used] = np.arange(used.size)
+    return v[used], remap[f]
+
+
+def default_faces(n_triangles: int) -> int:
+    """The control mesh size asked of the remesher when ``faces`` is not given: an eighth of
+    the triangles, between 96 and 2000."""
+    return int(min(2000, max(96, n_triangles // 8)))
+
+
+def _data_points(v: np.ndarray, f: np.ndarray, n_faces: int, vertices_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(points, weights) of the module docstring, weights normalised to mean 1."""
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if vertices_only:
+        w = np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=v.shape[0])
+        w = np.maximum(w, 1e-12 * max(w.max(), 1e-300))
+        return v, w / w.mean()
+    # a triangle larger than 1 / POINTS_PER_FACE of a control face's share of the area is
+    # sampled on a barycentric lattice of order n (n^2 sub-triangles, one point at each one's
+    # centroid), so that every patch sees enough points however coarse the input
+    share = area.sum() / (POINTS_PER_FACE * n_faces)
+    order = np.maximum(1, np.ceil(np.sqrt(area / max(share, 1e-300)))).astype(np.int64)
+    points, weights = [v], [np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=v.shape[0])]
+    coarse = order > 1
+    if f.shape[0] < CENTROIDS_BELOW * n_faces or coarse.any():
+        # vertices a twelfth, centroid three quarters of each triangle (exact for linear
+        # functions); coarse triangles: vertices a twelfth, the rest over the lattice points
+        weights[0] = np.bincount(f.ravel(), weights=np.repeat(area / 12.0, 3), minlength=v.shape[0])
+        fine = np.flatnonzero(~coarse)
+        points.append(tri[fine].mean(axis=1))
+        weights.append(0.75 * area[fine])
+        for n in np.unique(order[coarse]).tolist():
+            ids = np.flatnonzero(order == n)
+            bary = _lattice_centroids(n)
+            points.append(np.einsum("kb,tbc->tkc", bary, tri[ids]).reshape(-1, 3))
+            weights.append(np.repeat(0.75 * area[ids] / bary.shape[0], bary.shape[0]))
+    points, weights = np.concatenate(points), np.concatenate(weights)
+    weights = np.maximum(weights, 1e-12 * max(weights.max(), 1e-300))
+    return points, weights / weights.mean()
+
+
+def _lattice_centroids(n: int) -> np.ndarray:
+    """(n^2, 3) barycentric centroids of the n^2 sub-triangles of a triangle split n times per side."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append([(3 * i + 1) / (3 * n), (3 * j + 1) / (3 * n)])  # upright
+            if i + j < n - 1:
+                out.append([(3 * i + 2) / (3 * n), (3 * j + 2) / (3 * n)])  # inverted
+    ab = np.array(out)
+    return np.column_stack([1.0 - ab.sum(axis=1), ab[:, 0], ab[:, 1]])
+
+
+def _boundary_vertices(f: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bool, vertices on an edge of one triangle."""
+    e = np.sort(np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
+    keys, counts = np.unique(e, axis=0, return_counts=True)
+    out = np.zeros(n, dtype=bool)
+    out[keys[counts == 1].ravel()] = True
+    return out
+
+
+def _subset(feet: FootPoints, idx: np.ndarray) -> FootPoints:
+    return FootPoints(feet.patch[idx].copy(), feet.s[idx].copy(), feet.t[idx].copy(), feet.distance[idx].copy())
+
+
+def _face_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def fit(
+    vertices,
+    triangles,
+    faces: int | None = None,
+    control_mesh: ControlMesh | None = None,
+    *,
+    remesher: str | Remesher = "instant-meshes",
+    max_iterations: int = 30,
+    pdm_steps: int = 3,
+    tolerance: float = 1e-2,
+    fairing: float = 1e-6,
+    sampling: str = "auto",
+    name: str = "fit",
+) -> FitResult:
+    """Fit the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1; module docstring).
+
+    vertices: (n, 3) floats; triangles: (t, 3) ints, a manifold, consistently oriented
+    triangle mesh (open or closed) of at least 4 triangles.
+    faces: the control mesh size asked of the remesher (default ``default_faces``).
+    control_mesh: a control mesh to start from instead (its topology, tags and positions;
+    the remesher is not called).
+    max_iterations: most alternations; tolerance: stop when E falls by less than this
+    fraction; fairing: weight of the step fairing relative to the data term (solve).
+    sampling: "auto" (vertices, centroids and lattice points of coarse triangles, module
+    docstring) or "vertices" (the input vertices only, weighted by a third of the incident
+    areas: for inputs whose vertices are samples of a surface and whose triangles are not).
+    Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
+    missing)."""
+    start = time.perf_counter()
+    timings = {"remesh": 0.0, "operator": 0.0, "project": 0.0, "solve": 0.0, "report": 0.0}
+    v, f = check_triangles(vertices, triangles, name)
+    diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
+    if not diagonal > 0:
+        raise MeshError("all vertices coincide: the input has no extent", name)
+    remesh_seconds = 0.0
+    if control_mesh is None:
+        target = int(faces) if faces is not None else default_faces(f.shape[0])
+        if target < 1:
+            raise MeshError(f"the control mesh needs at least 1 face, not {target}", name)
+        t0 = time.perf_counter()
+        qv, polygons = quad_remesh(v, f, target, remesher, face_normals=_face_normals(v, f))
+        remesh_seconds = timings["remesh"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        remesher_name = remesher if isinstance(remesher, str) else getattr(remesher, "__name__", "remesher")
+        try:
+            control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
+            topo = Topology(control_mesh)
+            operator = build_operator(control_mesh, topology=topo)
+        except NupatchError as exc:
+            raise MeshError(f"the quad remesher's output is no usable control mesh: {exc.what}", remesher_name) from None
+    else:
+        remesher_name = "given"
+        t0 = time.perf_counter()
+        topo = Topology(control_mesh)
+        operator = build_operator(control_mesh, topology=topo)
+    timings["operator"] = time.perf_counter() - t0
+    layout = PatchLayout.of(operator)
+    matrix = operator.matrix.tocsr()
+    laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
+    if sampling not in ("auto", "vertices"):
+        raise ValueError(f"sampling must be 'auto' or 'vertices', not {sampling!r}")
+    points, weights = _data_points(v, f, control_mesh.n_faces, sampling == "vertices")
+
+    def energy(feet: FootPoints) -> float:
+        return float(np.sum(weights * feet.distance**2))
+
+    # Open boundaries: the input's boundary vertices are fitted by the surface's boundary
+    # curves (their feet held on the boundary sides, point distance), else the surface could
+    # reach past the input's boundary where no data point holds it.
+    sides = boundary_sides(operator)
+    on_boundary = np.zeros(points.shape[0], dtype=bool)
+    if sides.size:
+        on_boundary[: v.shape[0]] = _boundary_vertices(f, v.shape[0])
+    rim = np.flatnonzero(on_boundary)
+
+    def locate(P: np.ndarray, previous: FootPoints | None = None) -> FootPoints:
+        coefficients = matrix @ P
+        feet = project(layout, coefficients, points, previous=previous)
+        if rim.size:
+            before = None if previous is None else _subset(previous, rim)
+            edge = project_to_boundary(layout, coefficients, points[rim], sides, previous=before)
+            feet.patch[rim], feet.s[rim], feet.t[rim], feet.distance[rim] = edge.patch, edge.s, edge.t, edge.distance
+        return feet
+
+    P = np.asarray(control_mesh.vertices, dtype=np.float64).copy()
+    t0 = time.perf_counter()
+    feet = locate(P)
+    timings["project"] += time.perf_counter() - t0
+    errors, steps = [energy(feet)], []
+    floor = (1e-13 * diagonal) ** 2 * weights.sum()
+    pdm_left = pdm_steps
+    tried_tdm = False
+    alpha = ALPHA_START
+    for _ in range(max_iterations):
+        if errors[-1] <= floor:
+            break
+        method = "pdm" if pdm_left > 0 else "tdm"
+        tried_tdm = tried_tdm or method == "tdm"
+        while True:
+            t0 = time.perf_counter()
+            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha, point_distance=on_boundary)
+            t1 = time.perf_counter()
+            newfeet = locate(newP, feet)
+            timings["solve"] += t1 - t0
+            timings["project"] += time.perf_counter() - t1
+            e = energy(newfeet)
+            if method == "pdm" or e < errors[-1]:
+                break
+            # TDM is no descent method: more of the point distance (Levenberg-Marquardt-like),
+            # and past ALPHA_MAX a point-distance step, which cannot raise E
+            alpha *= 100.0
+            if alpha > ALPHA_MAX:
+                method, alpha = "pdm", ALPHA_START
+        if not e <= errors[-1]:  # cannot happen for PDM but round-off; stop rather than go up
+            break
+        if method == "tdm":
+            alpha = max(alpha / 10.0, ALPHA_MIN)
+        pdm_left -= 1
+        drop = errors[-1] - e
+        P, feet = newP, newfeet
+        errors.append(e)
+        steps.append(method)
+        if drop <= tolerance * errors[-2]:
+            if not tried_tdm:
+                pdm_left = 0  # point distance has stalled: go on with tangent distance
+                continue
+            break
+    t0 = time.perf_counter()
+    # the report's input -> surface distances from a full search (no previous feet)
+    fresh = project(layout, matrix @ P, points)
+    feet = FootPoints(feet.patch, feet.s, feet.t, np.minimum(fresh.distance, feet.distance))
+    surface = operator.evaluate(P)
+    surface = BezierSurface(surface.groups, surface.topology, name, surface.size)
+    coefficients = matrix @ P
+    u = (np.arange(REPORT_SAMPLES) + 0.5) / REPORT_SAMPLES
+    gs, gt = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
+    sp_ = np.repeat(np.arange(layout.n_patches), gs.size)
+    samples = evaluate(layout, coefficients, sp_, np.tile(gs, layout.n_patches), np.tile(gt, layout.n_patches))
+    back = mesh_distance(v, f, samples)
+    timings["report"] = time.perf_counter() - t0
+    report = FitReport(
+        diagonal=diagonal,
+        max_input_to_surface=float(feet.distance.max() / diagonal),
+        rms_input_to_surface=float(np.sqrt(np.mean(feet.distance**2)) / diagonal),
+        max_surface_to_input=float(back.max() / diagonal),
+        rms_surface_to_input=float(np.sqrt(np.mean(back**2)) / diagonal),
+        iterations=len(steps),
+        seconds=time.perf_counter() - start,
+        remesh_seconds=remesh_seconds,
+        input_vertices=int(v.shape[0]),
+        input_triangles=int(f.shape[0]),
+        data_points=int(points.shape[0]),
+        control_vertices=control_mesh.n_vertices,
+        control_faces=control_mesh.n_faces,
+        patches=layout.n_patches,
+        remesher=remesher_name,
+        errors=errors,
+        steps=steps,
+        timings=timings,
+    )
+    return FitResult(control_mesh.with_positions(P), operator, surface, report)
