@@ -413,15 +413,9 @@ def _diagonal(shape) -> float:
 
 
 def _require_step(path: Path) -> None:
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-    except FileNotFoundError:
-        raise InputFileError("no such file", str(path)) from None
-    except OSError as exc:
-        raise InputFileError(f"cannot read file: {exc.strerror}", str(path)) from None
-    if not head.lstrip().startswith(b"ISO-10303-21"):
-        raise InputFileError("not a STEP file (no ISO-10303-21 header)", str(path))
+    from export.step_check import require_step_header  # a regular file with the STEP header
+
+    require_step_header(path)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -124,17 +124,11 @@ def write_step_file(shape: TopoDS_Shape, tmp: Path, product_name: str, file_name
 
 
 def read_step(path: str | os.PathLike) -> TopoDS_Shape:
-    """Read every root of the STEP file at ``path`` into one shape (a compound if several)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputFileError("no such STEP file", str(path))
-    reader = STEPControl_Reader()
-    with _quiet_occ():
-        status = reader.ReadFile(str(path))
-        if status != IFSelect_RetDone:
-            raise InputFileError(f"not a readable STEP file ({status})", str(path))
-        reader.TransferRoots()
-        shape = reader.OneShape()
-    if shape.IsNull():
-        raise InputFileError("the STEP file holds no shape", str(path))
-    return shape
+    """Read every root of the STEP file at ``path`` into one shape (a compound if several).
+
+    Through ``export.step_check.read_step_checked``: a damaged file (an entity that failed to
+    read, a missing ``#id``, a non-finite real, faces lost in the transfer) is an
+    InputFileError, and OpenCASCADE's messages are captured, never printed."""
+    from .step_check import read_step_checked
+
+    return read_step_checked(path)
