@@ -219,7 +219,9 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def _build_many(args: argparse.Namespace, jobs: list[BuildJob]) -> int:
     """Build every job in up to ``-j`` processes; each result on its own line, exit 2 if any failed."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
+
+    from export.signals import worker_pool
 
     failed = 0
     with _Bar(args, len(jobs), "meshes") as bar:
@@ -241,7 +243,7 @@ def _build_many(args: argparse.Namespace, jobs: list[BuildJob]) -> int:
             for job in jobs:
                 report(_build_worker(job))
         else:
-            with ProcessPoolExecutor(max_workers=min(args.jobs, len(jobs))) as pool:
+            with worker_pool(min(args.jobs, len(jobs))) as pool:  # workers die with this process
                 for future in as_completed([pool.submit(_build_worker, job) for job in jobs]):
                     report(future.result())
     if failed:
@@ -520,6 +522,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from export.signals import Terminated, install
+
+    install()  # SIGTERM and SIGHUP unwind like Ctrl-C (export.signals)
     args = _parser().parse_args(argv)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", patching.NupatchWarning)
@@ -527,6 +532,8 @@ def main(argv: list[str] | None = None) -> int:
             code = args.func(args)
         except NupatchError as exc:
             code = _fail(f"error: {exc}", 2)
+        except Terminated as exc:
+            code = _fail(exc.message, exc.exit_code)
         except KeyboardInterrupt:
             code = _fail("interrupted", 130)
         except BrokenPipeError:  # the reader went away (`nupatch check x.step | head`): stop quietly
