@@ -261,7 +261,7 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.resolve() == mesh_path.resolve():
         raise NupatchError("the output would overwrite the input mesh", str(out))
-    if out.suffix.lower() != ".obj":
+    if out.suffix.lower() != ".obj" and str(out) != "-":
         raise NupatchError("subdivide writes OBJ: give OUT a .obj suffix", str(out))
     if args.steps < 0:
         raise NupatchError(f"-n must be a number of steps >= 0, got {args.steps}", "-n")
@@ -375,11 +375,13 @@ def cmd_render(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else source.with_suffix(".png")
     if out.resolve() == source.resolve():
         raise NupatchError("the output would overwrite the input", str(out))
-    if out.suffix.lower() != ".png":
+    if out.suffix.lower() != ".png" and str(out) != "-":
         raise NupatchError("render writes PNG images: OUT must end in .png", str(out))
     size = _size(args.size)
-    if args.tolerance is not None and not (args.tolerance > 0 and args.tolerance < float("inf")):
-        raise NupatchError(f"the tessellation tolerance must be finite and > 0, not {args.tolerance:g}", "--tolerance")
+    if args.tolerance is not None:
+        from export.budget import check_tolerance
+
+        check_tolerance(args.tolerance)
     check_output_path(out)
     start = time.perf_counter()
     if source.suffix.lower() in (".step", ".stp"):
@@ -400,6 +402,9 @@ def cmd_render(args: argparse.Namespace) -> int:
             edges = patching.Topology(mesh).edges
             lines = mesh.vertices[np.asarray(edges)]
         tolerance = args.tolerance or 2e-3 * surface.size
+        from export.budget import check_tessellation_budget
+
+        check_tessellation_budget(surface, tolerance)
     mode = "zebra" if args.zebra else (args.curvature or "shaded")
     sampled = sample_shape(shape, tolerance, lines)
     with atomic_output(out) as tmp:

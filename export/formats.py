@@ -49,12 +49,11 @@ MIN_TOLERANCE = 1e-7
 
 
 def check_tolerance(tolerance: float) -> None:
-    """NupatchError (naming --tolerance) unless the linear deflection is finite and >= MIN_TOLERANCE."""
-    if not (np.isfinite(tolerance) and tolerance >= MIN_TOLERANCE):
-        raise NupatchError(
-            f"tessellation tolerance must be finite and at least {MIN_TOLERANCE:g} (OpenCASCADE's precision), not {tolerance:g}",
-            "--tolerance",
-        )
+    """NupatchError (naming --tolerance) unless the linear deflection is finite and >= MIN_TOLERANCE
+    (``export.budget.check_tolerance``, the one check every command shares)."""
+    from .budget import check_tolerance as check
+
+    check(tolerance)
 
 
 @dataclass(frozen=True)
@@ -118,6 +117,9 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     if tolerance is None:
         tolerance = max(RELATIVE_TOLERANCE * surface.size, MIN_TOLERANCE)
     check_tolerance(tolerance)
+    from .budget import check_tessellation_budget
+
+    check_tessellation_budget(surface, tolerance)  # refused before BRepMesh if it would not fit
     mesher = BRepMesh_IncrementalMesh(shape, float(tolerance), False, ANGULAR_DEFLECTION, False)
     if not mesher.IsDone():
         raise RuntimeError("BRepMesh_IncrementalMesh failed")
@@ -303,6 +305,8 @@ def format_of(path: str | os.PathLike, fmt: str | None = None) -> str:
         if fmt not in WRITERS:
             raise OutputError(f"output format '{fmt}' is not supported (supported: {', '.join(FORMATS)})", str(path))
         return fmt
+    if str(path) == "-":  # standard output (patching.atomic.STDOUT): STEP unless --format says
+        return "step"
     suffix = Path(path).suffix.lower()
     if suffix not in SUFFIXES:
         raise OutputError(

@@ -71,15 +71,24 @@ class SurfaceOperator:
 
     def evaluate(self, points: np.ndarray) -> BezierSurface:
         """The patches for control points (n, 3)."""
-        points = np.asarray(points, dtype=np.float64)
+        from .validation import as_points, check_points, used_size
+
+        points = as_points(points, "points", rows=self.matrix.shape[1])
+        check_points(points, self.used_points, self.topology.is_closed, self.name)
         coeffs = self.coefficients(points)
         groups = []
         for g in self.groups:
             d = g.degree
             block = coeffs[g.row_offset : g.row_offset + g.n_rows].reshape(-1, d + 1, d + 1, 3)
             groups.append(PatchGroup(d, g.faces, block))
-        size = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+        size = used_size(points, self.used_points)  # a stray unused vertex does not count
         return BezierSurface(tuple(groups), self.topology, self.name, size)
+
+    @cached_property
+    def used_points(self) -> np.ndarray:
+        """Column ids (control points) that some coefficient depends on, sorted."""
+        m = self.matrix.tocsr()
+        return np.unique(m.indices[m.data != 0])
 
     @cached_property
     def row_sums(self) -> np.ndarray:

@@ -1,0 +1,122 @@
+"""Resource budgets checked before the work starts: tessellation size, patch count, --tolerance.
+
+Tessellation (``stl``, ``glb``, ``obj`` and ``render``): OpenCASCADE's ``BRepMesh`` refines a
+face until its chords are within the linear deflection ``tol``.  A polynomial curve c(s) with
+|c''| <= K deviates from its chord of parameter length h by at most K h^2 / 8, and for a
+Bezier net of degree d, |S_ss| <= d (d - 1) max |second difference of the net in s|
+(the hodograph of the hodograph; Farin, *Curves and Surfaces for CAGD*, sec. 5.3).  So a patch
+needs about n_s = ceil(sqrt(K_s / (8 tol))) segments in s (likewise t).  BRepMesh makes more
+than the 2 n_s n_t triangles of that grid (it also refines for the angular deflection, along
+the edges, and puts at least a few nodes inside every face); ``estimate_triangles`` takes
+4 (n_s + 1)(n_t + 1) per patch, a factor calibrated on 2026-12-01 against OpenCASCADE's counts:
+cube 0.52 to 0.88 of them, torus 30 x 30 1.2 to 1.6, pawn (93k patches) 1.0 to 1.7 at
+tolerances 1e-2 to 1e-4 of the size (tests/test_faults.py checks the cube and a torus).
+
+Above ``MAX_TRIANGLES`` (documented in docs/limits.md) the tessellation is refused up front
+with an OutputError that names ``--tolerance`` and the smallest tolerance that fits; at
+``WARN_TRIANGLES`` a warning says how large the output will be.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from patching.errors import NupatchError
+from patching.mesh import NupatchWarning
+
+__all__ = [
+    "MAX_TRIANGLES",
+    "WARN_TRIANGLES",
+    "MIN_TOLERANCE",
+    "MANY_PATCHES",
+    "check_tolerance",
+    "estimate_triangles",
+    "check_tessellation_budget",
+    "warn_many_patches",
+]
+
+#: Most triangles a tessellation may have: OpenCASCADE's mesh data structures take several
+#: hundred bytes per triangle while meshing (a cube at 1e-6 reached 7.5 GB), then our points,
+#: normals, uv and indices; a 250 MB STL.  Refused above, with the tolerance that would fit.
+MAX_TRIANGLES = 5_000_000
+#: Triangles from which a warning gives the expected size.
+WARN_TRIANGLES = 1_000_000
+#: Smallest linear deflection: OpenCASCADE's Precision::Confusion (BRepMesh throws below).
+MIN_TOLERANCE = 1e-7
+#: Patches from which a build warns, when the mesh has far fewer faces (refinement of tags).
+MANY_PATCHES = 50_000
+
+
+def check_tolerance(tolerance, option: str = "--tolerance") -> float:
+    """The one check of a linear deflection every command shares: a finite number >=
+    MIN_TOLERANCE, else a NupatchError naming ``option``.  Returns it as a float."""
+    try:
+        value = float(tolerance)
+    except (TypeError, ValueError):
+        raise NupatchError(f"tessellation tolerance must be a number, not {tolerance!r}", option) from None
+    if not (math.isfinite(value) and value >= MIN_TOLERANCE):
+        raise NupatchError(
+            f"tessellation tolerance must be finite and at least {MIN_TOLERANCE:g} (OpenCASCADE's precision), not {value:g}",
+            option,
+        )
+    return value
+
+
+def _segments(groups, tolerance: float) -> np.ndarray:
+    """(patches, 2) segment counts (n_s, n_t) per patch, in row order."""
+    parts = []
+    for g in groups:
+        d = g.degree
+        nets = np.asarray(g.coefficients)  # (k, d+1, d+1, 3)
+        if d < 2 or len(nets) == 0:
+            parts.append(np.ones((len(nets), 2)))
+            continue
+        ss = np.linalg.norm(nets[:, 2:] - 2 * nets[:, 1:-1] + nets[:, :-2], axis=-1).max(axis=(1, 2))
+        tt = np.linalg.norm(nets[:, :, 2:] - 2 * nets[:, :, 1:-1] + nets[:, :, :-2], axis=-1).max(axis=(1, 2))
+        k = d * (d - 1) * np.stack([ss, tt], axis=1)
+        parts.append(np.maximum(1.0, np.ceil(np.sqrt(k / (8.0 * tolerance)))))
+    return np.concatenate(parts) if parts else np.zeros((0, 2))
+
+
+def estimate_triangles(surface, tolerance: float) -> int:
+    """Triangles a tessellation of ``surface`` within ``tolerance`` needs (module docstring)."""
+    n = _segments(surface.groups, float(tolerance))
+    return int((4.0 * (n[:, 0] + 1) * (n[:, 1] + 1)).sum())
+
+
+def check_tessellation_budget(surface, tolerance: float, option: str = "--tolerance") -> int:
+    """Refuse (NupatchError naming ``option``) a tessellation estimated above MAX_TRIANGLES,
+    warn above WARN_TRIANGLES; returns the estimate.  Runs before BRepMesh is called."""
+    estimate = estimate_triangles(surface, tolerance)
+    if estimate > MAX_TRIANGLES:
+        # triangles scale as 1 / tolerance: the tolerance that fits, rounded up to 2 digits
+        fits = float(f"{tolerance * estimate / MAX_TRIANGLES * 1.01:.2g}")
+        raise NupatchError(
+            f"tolerance {tolerance:g} would make about {estimate:.3g} triangles, more than the budget of "
+            f"{MAX_TRIANGLES:.3g} (docs/limits.md); use a tolerance of at least {fits:g}",
+            option,
+        )
+    if estimate > WARN_TRIANGLES:
+        warnings.warn(NupatchWarning(f"tolerance {tolerance:g} makes about {estimate:.3g} triangles (a large output)"))
+    return estimate
+
+
+def warn_many_patches(mesh, surface) -> None:
+    """A NupatchWarning when a build makes more than MANY_PATCHES patches from a mesh of fewer
+    than MANY_PATCHES / 10 faces: refinement of semi-sharp tags did it; the tags are named."""
+    if surface.n_patches <= MANY_PATCHES or mesh.n_faces * 10 > MANY_PATCHES:
+        return
+    semi = sorted(((s, e) for e, s in mesh.creases.items() if 0 < s < 10), reverse=True)
+    corners = sorted(((s, v) for v, s in mesh.corners.items() if 0 < s < 10), reverse=True)
+    named = [f"crease {a}-{b} s={s:g} ({mesh.where('crease', (a, b))})" for s, (a, b) in semi[:3]]
+    named += [f"corner {v} s={s:g} ({mesh.where('corner', v)})" for s, v in corners[:2]]
+    cause = ", ".join(named) if named else "the subdivision the mesh needs"
+    warnings.warn(
+        NupatchWarning(
+            f"{surface.n_patches} patches from {mesh.n_faces} faces: semi-sharp tags are refined step by step; "
+            f"the highest: {cause}"
+        )
+    )
