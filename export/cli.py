@@ -127,6 +127,9 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
         shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
     else:
         shape = to_shape(surface)
+    from export.budget import warn_many_patches
+
+    warn_many_patches(mesh, surface)  # >50k patches from a small mesh: the tags that made them
     _warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
     stage(f"{STAGES[3]} {job.fmt}")
     write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)

@@ -230,7 +230,7 @@ def _write_stl(job: ExportJob, tmp: Path) -> None:
 def _write_obj(job: ExportJob, tmp: Path) -> None:
     """Wavefront OBJ: v (millimetres), vt = patch (s, t), vn = patch normals, f v/vt/vn."""
     t = job.tessellation
-    with open(tmp, "w", encoding="ascii") as fh:
+    with open(tmp, "w", encoding="utf-8") as fh:  # a mesh name need not be ASCII (Würfel)
         fh.write(f"# nupatch {job.name}: {len(t.points)} vertices, {len(t.triangles)} triangles, millimetres\n")
         fh.write(f"# tessellation tolerance {t.tolerance:g}; vt = patch parameters (s, t), vn = patch normals\n")
         fh.write(f"o {job.name}\n")

@@ -140,12 +140,10 @@ def build_operator(
     faces of one mesh (``patched_mesh``), as ``export.pack`` needs.
     topology: the mesh's Topology if already built.
     """
-    if g1_solve not in G1_SOLVES:
-        raise ValueError(f"g1_solve must be one of {G1_SOLVES}, not {g1_solve!r}")
-    if anchors not in ANCHOR_RULES:
-        raise ValueError(f"anchors must be one of {ANCHOR_RULES}, not {anchors!r}")
-    if interior not in INTERIOR_RULES:
-        raise ValueError(f"interior must be one of {INTERIOR_RULES}, not {interior!r}")
+    from .validation import check_build_arguments  # NupatchError naming the argument
+
+    check_build_arguments(mesh, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve,
+                          refinement=refinement, topology=topology)
     topo = topology or Topology(mesh)
     if not _refined:
         # Tears are judged on the user's mesh, before any refinement: refining a zero strip

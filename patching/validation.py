@@ -193,3 +193,23 @@ def finite_number(value: Any, argument: str, *, positive: bool = False, integer:
         kind = "a whole number" if integer else "a finite number"
         raise NupatchError(f"{argument} must be {kind}{' > 0' if positive else ''}, not {value!r}", argument)
     return float(value)
+
+
+def check_build_arguments(mesh: Any, *, angles: Any, anchors: Any, interior: Any, g1_solve: Any,
+                          refinement: Any, topology: Any = None) -> None:
+    """The arguments of ``build`` and ``build_operator``: a ControlMesh (and its Topology if
+    given) and each option one of its choices; NupatchError naming the argument otherwise."""
+    from .angle_configuration import MODES
+    from .mesh import ControlMesh
+    from .operator import ANCHOR_RULES, G1_SOLVES, INTERIOR_RULES, REFINEMENTS
+    from .topology import Topology
+
+    if not isinstance(mesh, ControlMesh):
+        raise MeshError(f"mesh must be a ControlMesh (read_mesh or from_arrays), not {type(mesh).__name__}", "mesh")
+    if topology is not None and not isinstance(topology, Topology):
+        raise MeshError(f"topology must be a Topology of the mesh, not {type(topology).__name__}", "topology")
+    as_choice(angles, MODES, "angles")
+    as_choice(anchors, ANCHOR_RULES, "anchors")
+    as_choice(interior, INTERIOR_RULES, "interior")
+    as_choice(g1_solve, G1_SOLVES, "g1_solve")
+    as_choice(refinement, REFINEMENTS, "refinement")
