@@ -197,6 +197,9 @@ def _write_iges(job: ExportJob, tmp: Path) -> None:
         if not writer.AddShape(job.shape):
             raise RuntimeError(f"IGESControl_Writer.AddShape failed for {job.file_name}")
         writer.ComputeModel()
+        from .reproducible import apply_to_iges
+
+        apply_to_iges(writer)  # no login name; SOURCE_DATE_EPOCH's date
         if not writer.Write(str(tmp)):
             raise RuntimeError(f"IGESControl_Writer.Write failed for {job.file_name}")
 

@@ -84,6 +84,9 @@ def _name_products(writer: STEPControl_Writer, product_name: str, file_name: str
         raise StepError("the STEP model has no PRODUCT entity to name")
     header = APIHeaderSection_MakeHeader(model)
     header.SetName(TCollection_HAsciiString(file_name))
+    from .reproducible import apply_to_step_header
+
+    apply_to_step_header(header)  # SOURCE_DATE_EPOCH's time stamp where set
     header.Apply(model)
 
 
