@@ -109,11 +109,19 @@ def _output_directory(path: Path) -> Path:
     return parent
 
 
-def _full_disk(exc: BaseException, where: str) -> OutputError | None:
+def _full_disk(exc: BaseException, where: str, tmp: Path | None = None) -> OutputError | None:
     """OutputError for an ENOSPC/EDQUOT/EFBIG failure (as OSError, or hidden in a writer that
-    only says it failed while the directory has no space left); None otherwise."""
+    only says it failed while the directory has no space left or the file reached the
+    process's RLIMIT_FSIZE); None otherwise."""
     if isinstance(exc, OSError) and exc.errno in _FULL:
         return OutputError(_FULL[exc.errno], where)
+    if isinstance(exc, (OSError, RuntimeError)) and tmp is not None:
+        with contextlib.suppress(Exception):
+            import resource
+
+            limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+            if limit != resource.RLIM_INFINITY and os.stat(tmp).st_size >= limit:
+                return OutputError(_FULL[errno.EFBIG], where)
     if isinstance(exc, (OSError, RuntimeError)):
         with contextlib.suppress(OSError):
             fs = os.statvfs(Path(where).parent if str(Path(where).parent) else ".")
@@ -214,9 +222,9 @@ def atomic_path(path: str | os.PathLike, empty_error: type[Exception] = OutputEr
         if not to_stdout:
             os.replace(tmp, path)
     except BaseException as exc:
+        full = _full_disk(exc, str(path), tmp) if not to_stdout and not isinstance(exc, (OutputError, KeyboardInterrupt)) else None
         with contextlib.suppress(OSError):
             tmp.unlink()
-        full = _full_disk(exc, str(path)) if not to_stdout and not isinstance(exc, (OutputError, KeyboardInterrupt)) else None
         if full is not None:
             raise full from None
         raise
