@@ -176,8 +176,8 @@ def check_points(points: np.ndarray, used: np.ndarray | None = None, closed: boo
     singular values of the centred points, relative to the largest, are compared with
     DEGENERATE_RATIO."""
     p = points if used is None else points[used]
-    if len(p) < 3:
-        raise MeshError("degenerate geometry: fewer than three control points are used", where)
+    if len(p) < 3:  # no patch at all: build() names the cause (holes, zero intervals)
+        return
     sv = np.linalg.svd(p - p.mean(axis=0), compute_uv=False)
     if sv[0] == 0.0 or sv[1] <= DEGENERATE_RATIO * sv[0]:
         raise MeshError("degenerate geometry: all control points lie on a line, the surface has no area", where)
