@@ -159,6 +159,11 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+def _default_sigint():
+    """A shell's background job inherits SIGINT ignored, and Python then keeps it ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("signame,block", [("SIGTERM", "0"), ("SIGHUP", "0"), ("SIGINT", "0"), ("SIGTERM", "1"), ("SIGHUP", "1")])
 def test_a_signal_during_a_long_native_write_leaves_no_temp_file_and_the_old_output(tmp_path, signame, block):
     """block=1: the main thread does not see the signal while in native code (the watchdog's case)."""
@@ -166,7 +171,8 @@ def test_a_signal_during_a_long_native_write_leaves_no_temp_file_and_the_old_out
     out = tmp_path / "m.step"
     out.write_text("old")
     p = subprocess.Popen([sys.executable, "-c", SLOW_WRITER, "build", "m.obj", "-o", "m.step", "-q"],
-                         cwd=tmp_path, env=dict(ENV, BLOCK=block), stderr=subprocess.PIPE, text=True)
+                         cwd=tmp_path, env=dict(ENV, BLOCK=block), stderr=subprocess.PIPE, text=True,
+                         preexec_fn=_default_sigint)
     assert p.stderr.readline().strip() == "WRITING"
     assert leftovers(tmp_path)  # the temporary file exists while writing
     signum = getattr(signal, signame)
