@@ -36,6 +36,8 @@ __all__ = [
     "estimate_triangles",
     "check_tessellation_budget",
     "warn_many_patches",
+    "estimate_shape_triangles",
+    "check_shape_budget",
 ]
 
 #: Most triangles a tessellation may have: OpenCASCADE's mesh data structures take several
@@ -120,3 +122,52 @@ def warn_many_patches(mesh, surface) -> None:
             f"the highest: {cause}"
         )
     )
+
+
+def estimate_shape_triangles(shape, tolerance: float) -> int:
+    """``estimate_triangles`` for an OpenCASCADE shape (a STEP file given to ``render``): the
+    same bound per knot span of every B-spline or Bezier face, read from its poles (each span
+    taken as one patch of the face's degree); other faces count as a few triangles."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.GeomAbs import GeomAbs_BezierSurface, GeomAbs_BSplineSurface
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    total = 0
+    explorer = TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        adaptor = BRepAdaptor_Surface(TopoDS.Face_s(explorer.Current()))
+        kind = adaptor.GetType()
+        if kind in (GeomAbs_BSplineSurface, GeomAbs_BezierSurface):
+            geom = adaptor.BSpline() if kind == GeomAbs_BSplineSurface else adaptor.Bezier()
+            nu, nv = geom.NbUPoles(), geom.NbVPoles()
+            poles = np.array([[geom.Pole(i, j).Coord() for j in range(1, nv + 1)] for i in range(1, nu + 1)])
+            du, dv = geom.UDegree(), geom.VDegree()
+            spans_u = geom.NbUKnots() - 1 if kind == GeomAbs_BSplineSurface else 1
+            spans_v = geom.NbVKnots() - 1 if kind == GeomAbs_BSplineSurface else 1
+            ss = np.linalg.norm(poles[2:] - 2 * poles[1:-1] + poles[:-2], axis=-1).max() if nu > 2 else 0.0
+            tt = np.linalg.norm(poles[:, 2:] - 2 * poles[:, 1:-1] + poles[:, :-2], axis=-1).max() if nv > 2 else 0.0
+            # each span as a Bezier patch whose net has the poles' second differences
+            n_s = math.ceil(math.sqrt(max(du * (du - 1), 0) * ss / (8.0 * tolerance))) if ss > 0 else 1
+            n_t = math.ceil(math.sqrt(max(dv * (dv - 1), 0) * tt / (8.0 * tolerance))) if tt > 0 else 1
+            total += int(4 * spans_u * spans_v * (max(n_s, 1) + 1) * (max(n_t, 1) + 1))
+        else:
+            total += 8
+        explorer.Next()
+    return total
+
+
+def check_shape_budget(shape, tolerance: float, option: str = "--tolerance") -> int:
+    """``check_tessellation_budget`` for an OpenCASCADE shape (``estimate_shape_triangles``)."""
+    estimate = estimate_shape_triangles(shape, tolerance)
+    if estimate > MAX_TRIANGLES:
+        fits = float(f"{tolerance * estimate / MAX_TRIANGLES * 1.01:.2g}")
+        raise NupatchError(
+            f"tolerance {tolerance:g} would make about {estimate:.3g} triangles, more than the budget of "
+            f"{MAX_TRIANGLES:.3g} (docs/limits.md); use a tolerance of at least {fits:g}",
+            option,
+        )
+    if estimate > WARN_TRIANGLES:
+        warnings.warn(NupatchWarning(f"tolerance {tolerance:g} makes about {estimate:.3g} triangles (a large output)"))
+    return estimate

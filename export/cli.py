@@ -394,6 +394,9 @@ def cmd_render(args: argparse.Namespace) -> int:
         shape = read_step(source)
         lines = None  # the faces' boundary edges
         tolerance = args.tolerance or 2e-3 * _diagonal(shape)
+        from export.budget import check_shape_budget
+
+        check_shape_budget(shape, tolerance)  # before BRepMesh, as for a mesh
     else:
         from export.brep import to_shape
 

@@ -75,10 +75,14 @@ def as_faces(faces: Any, argument: str = "faces") -> list[np.ndarray] | np.ndarr
         raise MeshError(f"{argument} must be a list of index lists, not {type(faces).__name__}", argument) from None
     out = []
     for f, face in enumerate(items):
-        if isinstance(face, (str, bytes)) or np.ndim(face) != 1:
+        try:
+            ndim = np.ndim(face)
+        except ValueError:  # ragged nesting
+            ndim = -1
+        if isinstance(face, (str, bytes)) or ndim != 1:
             raise MeshError(
                 f"{argument}[{f}] must be a list of vertex indices, got {type(face).__name__}"
-                + (" (faces given as one flat list?)" if np.ndim(face) == 0 else ""),
+                + (" (faces given as one flat list?)" if ndim == 0 else ""),
                 argument,
             )
         out.append(_integers(face, f"{argument}[{f}]"))

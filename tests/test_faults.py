@@ -426,6 +426,17 @@ def test_the_triangle_estimate_follows_opencascade_within_a_factor_of_three():
             assert 1 / 3 < ratio < 3, (mesh.n_faces, rel, ratio)
 
 
+def test_render_of_a_step_file_checks_the_budget_too(cube_step, tmp_path):
+    from export.budget import estimate_shape_triangles, estimate_triangles
+    from export.step import read_step
+
+    line = one_error_line(run("render", cube_step, "-o", tmp_path / "x.png", "--tolerance", "1e-6", timeout=120))
+    assert "budget" in line and not (tmp_path / "x.png").exists()
+    # the shape's estimate is the surface's: one Bezier span per face, the same nets
+    surface = patching.build(_cube_mesh())
+    assert estimate_shape_triangles(read_step(cube_step), 1e-3) == estimate_triangles(surface, 1e-3)
+
+
 def test_info_on_an_endless_device_is_refused_from_its_first_bytes():
     line = one_error_line(run("info", "/dev/zero", timeout=60))
     assert "binary" in line
