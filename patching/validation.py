@@ -175,15 +175,17 @@ def used_size(points: np.ndarray, used: np.ndarray | None = None) -> float:
 
 
 def check_points(points: np.ndarray, used: np.ndarray | None = None, closed: bool = False, where: str = "mesh") -> None:
-    """MeshError for a degenerate net: the used points all on one point or line (a surface of no
-    area), or, when ``closed``, all on a plane (a closed surface enclosing no volume).  The
+    """MeshError for a degenerate net: the used points all on one line (a surface of no area),
+    or, when ``closed``, all on a plane (a closed surface enclosing no volume).  The
     singular values of the centred points, relative to the largest, are compared with
     DEGENERATE_RATIO."""
     p = points if used is None else points[used]
     if len(p) < 3:  # no patch at all: build() names the cause (holes, zero intervals)
         return
     sv = np.linalg.svd(p - p.mean(axis=0), compute_uv=False)
-    if sv[0] == 0.0 or sv[1] <= DEGENERATE_RATIO * sv[0]:
+    if sv[0] == 0.0:  # all on one point: the B-rep names the first side of no length
+        return
+    if sv[1] <= DEGENERATE_RATIO * sv[0]:
         raise MeshError("degenerate geometry: all control points lie on a line, the surface has no area", where)
     if closed and (len(sv) < 3 or sv[2] <= DEGENERATE_RATIO * sv[0]):
         raise MeshError("degenerate geometry: all control points of the closed surface lie on a plane, it encloses no volume", where)
