@@ -231,6 +231,7 @@ def _running(pid: int) -> bool:
         return False
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM])
 def test_workers_of_build_j2_die_with_their_parent_and_write_nothing(tmp_path, how):
@@ -343,6 +344,7 @@ def _fsize_limit():
 FORMATS = ["step", "iges", "brep", "stl", "glb", "obj"]
 
 
+@pytest.mark.slow
 def test_a_full_disk_is_one_line_exit_2_in_every_format(tmp_path):
     """ENOSPC from a 64 KiB tmpfs where mounting works; otherwise EFBIG from RLIMIT_FSIZE."""
     mesh = tmp_path / "t.obj"
