@@ -16,7 +16,7 @@ from pathlib import Path
 
 import patching
 from export.atomic import check_output_path
-from patching.errors import InputFileError, NupatchError
+from patching.errors import NupatchError
 from patching.options import CHOICES, BuildOptions
 
 from export.tolerances import G1_TOLERANCE_DEG, N_WORST, SHARP_ANGLE_DEG
@@ -185,7 +185,7 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.resolve() == mesh_path.resolve():
         raise NupatchError("the output would overwrite the input mesh", str(out))
-    if out.suffix.lower() != ".obj":
+    if out.suffix.lower() != ".obj" and str(out) != "-":
         raise NupatchError("subdivide writes OBJ: give OUT a .obj suffix", str(out))
     if args.steps < 0:
         raise NupatchError(f"-n must be a number of steps >= 0, got {args.steps}", "-n")
@@ -268,7 +268,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else source.with_suffix(".png")
     if out.resolve() == source.resolve():
         raise NupatchError("the output would overwrite the input", str(out))
-    if out.suffix.lower() != ".png":
+    if out.suffix.lower() != ".png" and str(out) != "-":
         raise NupatchError("render writes PNG images: OUT must end in .png", str(out))
     size = _size(args.size)
     if args.tolerance is not None:
@@ -284,6 +284,9 @@ def cmd_render(args: argparse.Namespace) -> int:
         shape = read_step(source)
         lines = None  # the faces' boundary edges
         tolerance = args.tolerance or RENDER_RELATIVE * _diagonal(shape)
+        from export.budget import check_shape_budget
+
+        check_shape_budget(shape, tolerance)  # before BRepMesh, as for a mesh
     else:
         from export.brep import to_shape
 
@@ -295,6 +298,9 @@ def cmd_render(args: argparse.Namespace) -> int:
             edges = patching.Topology(mesh).edges
             lines = mesh.vertices[np.asarray(edges)]
         tolerance = args.tolerance or RENDER_RELATIVE * surface.size
+        from export.budget import check_tessellation_budget
+
+        check_tessellation_budget(surface, tolerance)
     mode = "zebra" if args.zebra else (args.curvature or "shaded")
     sampled = sample_shape(shape, tolerance, lines)
     with atomic_output(out) as tmp:
@@ -310,15 +316,9 @@ def _diagonal(shape) -> float:
 
 
 def _require_step(path: Path) -> None:
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-    except FileNotFoundError:
-        raise InputFileError("no such file", str(path)) from None
-    except OSError as exc:
-        raise InputFileError(f"cannot read file: {exc.strerror}", str(path)) from None
-    if not head.lstrip().startswith(b"ISO-10303-21"):
-        raise InputFileError("not a STEP file (no ISO-10303-21 header)", str(path))
+    from export.step_check import require_step_header  # a regular file with the STEP header
+
+    require_step_header(path)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -456,6 +456,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from export.signals import Terminated, install
+
+    install()  # SIGTERM and SIGHUP unwind like Ctrl-C (export.signals)
     args = _parser().parse_args(argv)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", patching.NupatchWarning)
@@ -463,6 +466,8 @@ def main(argv: list[str] | None = None) -> int:
             code = args.func(args)
         except NupatchError as exc:
             code = _fail(f"error: {exc}", 2)
+        except Terminated as exc:
+            code = _fail(exc.message, exc.exit_code)
         except KeyboardInterrupt:
             code = _fail("interrupted", 130)
         except BrokenPipeError:  # the reader went away (`nupatch check x.step | head`): stop quietly

@@ -331,8 +331,17 @@ def check_continuity(
     measured rather than refused) and faces are reported by their mesh face ids; ``face_ids``
     (sequence, face index -> id) renames faces likewise for a shape.
     """
-    if samples_per_edge < 2:
-        raise ValueError("samples_per_edge must be at least 2 (the edge's two ends)")
+    import numbers
+
+    from patching.errors import NupatchError
+
+    if isinstance(samples_per_edge, bool) or not isinstance(samples_per_edge, numbers.Integral) or samples_per_edge < 2:
+        raise NupatchError(f"samples_per_edge must be an integer of at least 2 (the edge's two ends), not {samples_per_edge!r}", "samples_per_edge")
+    if not isinstance(shape_or_path, (str, os.PathLike, TopoDS_Shape)) and type(shape_or_path).__name__ != "BezierSurface":
+        raise NupatchError(
+            f"check_continuity takes a BezierSurface, a TopoDS_Shape or a STEP file path, not {type(shape_or_path).__name__}",
+            "shape_or_path",
+        )
     from patching.surface import BezierSurface
 
     if isinstance(shape_or_path, BezierSurface):

@@ -93,6 +93,9 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     if tolerance is None:
         tolerance = max(TESSELLATION_RELATIVE * surface.size, MIN_TESSELLATION)
     check_tolerance(tolerance)
+    from .budget import check_tessellation_budget
+
+    check_tessellation_budget(surface, tolerance)  # refused before BRepMesh if it would not fit
     mesher = BRepMesh_IncrementalMesh(shape, float(tolerance), False, ANGULAR_DEFLECTION, False)
     if not mesher.IsDone():
         raise RuntimeError("BRepMesh_IncrementalMesh failed")
@@ -170,6 +173,9 @@ def _write_iges(job: ExportJob, tmp: Path) -> None:
         if not writer.AddShape(job.shape):
             raise RuntimeError(f"IGESControl_Writer.AddShape failed for {job.file_name}")
         writer.ComputeModel()
+        from .reproducible import apply_to_iges
+
+        apply_to_iges(writer)  # no login name; SOURCE_DATE_EPOCH's date
         if not writer.Write(str(tmp)):
             raise RuntimeError(f"IGESControl_Writer.Write failed for {job.file_name}")
 
@@ -203,7 +209,7 @@ def _write_stl(job: ExportJob, tmp: Path) -> None:
 def _write_obj(job: ExportJob, tmp: Path) -> None:
     """Wavefront OBJ: v (millimetres), vt = patch (s, t), vn = patch normals, f v/vt/vn."""
     t = job.tessellation
-    with open(tmp, "w", encoding="ascii") as fh:
+    with open(tmp, "w", encoding="utf-8") as fh:  # a mesh name need not be ASCII (Würfel)
         fh.write(f"# nupatch {job.name}: {len(t.points)} vertices, {len(t.triangles)} triangles, millimetres\n")
         fh.write(f"# tessellation tolerance {t.tolerance:g}; vt = patch parameters (s, t), vn = patch normals\n")
         fh.write(f"o {job.name}\n")
@@ -278,6 +284,8 @@ def format_of(path: str | os.PathLike, fmt: str | None = None) -> str:
         if fmt not in WRITERS:
             raise OutputError(f"output format '{fmt}' is not supported (supported: {', '.join(FORMATS)})", str(path))
         return fmt
+    if str(path) == "-":  # standard output (export.atomic.STDOUT): STEP unless --format says
+        return "step"
     suffix = Path(path).suffix.lower()
     if suffix not in SUFFIXES:
         raise OutputError(

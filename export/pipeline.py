@@ -72,6 +72,9 @@ def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -
         shape, _ = to_packed_shape(surface, patch_spans(surface, mesh))
     else:
         shape = to_shape(surface)
+    from export.budget import warn_many_patches
+
+    warn_many_patches(mesh, surface)  # >50k patches from a small mesh: the tags that made them
     warn_folds(surface)  # after the B-rep: a refused surface gets its one line only
     stage(f"{STAGES[3]} {job.fmt}")
     write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
@@ -144,7 +147,9 @@ def build_one(job: BuildJob) -> BuildResult:
 def build_files(jobs: Iterable[BuildJob], workers: int = 1, report: Callable[[BuildResult], None] = lambda r: None) -> list[BuildResult]:
     """Build every job, in up to ``workers`` processes; ``report`` is called with each result as
     it comes (in completion order); one failure never stops the others."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
+
+    from export.signals import worker_pool
 
     jobs = list(jobs)
     results = []
@@ -153,7 +158,7 @@ def build_files(jobs: Iterable[BuildJob], workers: int = 1, report: Callable[[Bu
             results.append(build_one(job))
             report(results[-1])
         return results
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+    with worker_pool(min(workers, len(jobs))) as pool:  # workers die with this process
         for future in as_completed([pool.submit(build_one, job) for job in jobs]):
             results.append(future.result())
             report(results[-1])

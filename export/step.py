@@ -23,12 +23,11 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
 from OCP.Message import Message, Message_Gravity
-from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
 from OCP.StepBasic import StepBasic_Product
 from OCP.TCollection import TCollection_HAsciiString
 from OCP.TopoDS import TopoDS_Shape
 
-from patching.errors import InputFileError
 
 from export.atomic import atomic_output
 
@@ -84,6 +83,9 @@ def _name_products(writer: STEPControl_Writer, product_name: str, file_name: str
         raise StepError("the STEP model has no PRODUCT entity to name")
     header = APIHeaderSection_MakeHeader(model)
     header.SetName(TCollection_HAsciiString(file_name))
+    from .reproducible import apply_to_step_header
+
+    apply_to_step_header(header)  # SOURCE_DATE_EPOCH's time stamp where set
     header.Apply(model)
 
 
@@ -124,17 +126,11 @@ def write_step_file(shape: TopoDS_Shape, tmp: Path, product_name: str, file_name
 
 
 def read_step(path: str | os.PathLike) -> TopoDS_Shape:
-    """Read every root of the STEP file at ``path`` into one shape (a compound if several)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputFileError("no such STEP file", str(path))
-    reader = STEPControl_Reader()
-    with quiet_occ():
-        status = reader.ReadFile(str(path))
-        if status != IFSelect_RetDone:
-            raise InputFileError(f"not a readable STEP file ({status})", str(path))
-        reader.TransferRoots()
-        shape = reader.OneShape()
-    if shape.IsNull():
-        raise InputFileError("the STEP file holds no shape", str(path))
-    return shape
+    """Read every root of the STEP file at ``path`` into one shape (a compound if several).
+
+    Through ``export.step_check.read_step_checked``: a damaged file (an entity that failed to
+    read, a missing ``#id``, a non-finite real, faces lost in the transfer) is an
+    InputFileError, and OpenCASCADE's messages are captured, never printed."""
+    from .step_check import read_step_checked
+
+    return read_step_checked(path)

@@ -44,11 +44,16 @@ ANGULAR_DEFLECTION = 0.5
 RENDER_RELATIVE = 2e-3
 
 
-def check_tolerance(tolerance: float) -> None:
-    """NupatchError (naming --tolerance) unless a linear deflection is finite and at least
-    MIN_TESSELLATION; the one check of ``--tolerance`` for every command."""
-    if not (math.isfinite(tolerance) and tolerance >= MIN_TESSELLATION):
+def check_tolerance(tolerance, option: str = "--tolerance") -> float:
+    """The one check of a linear deflection every command shares: a finite number at least
+    MIN_TESSELLATION, else a NupatchError naming ``option``.  Returns it as a float."""
+    try:
+        value = float(tolerance)
+    except (TypeError, ValueError):
+        raise NupatchError(f"tessellation tolerance must be a number, not {tolerance!r}", option) from None
+    if not (math.isfinite(value) and value >= MIN_TESSELLATION):
         raise NupatchError(
-            f"tessellation tolerance must be finite and at least {MIN_TESSELLATION:g} (OpenCASCADE's precision), not {tolerance:g}",
-            "--tolerance",
+            f"tessellation tolerance must be finite and at least {MIN_TESSELLATION:g} (OpenCASCADE's precision), not {value:g}",
+            option,
         )
+    return value

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from patching.util.parallel import product
+from patching.validation import as_points, check_points, used_size
 
 __all__ = ["CORNER_PARAMETERS", "PatchGroup", "PatchTopology", "SidePieces", "BezierSurface", "OperatorGroup", "SurfaceOperator"]
 
@@ -226,16 +227,25 @@ class SurfaceOperator:
         return product(self.matrix, np.asarray(points, dtype=np.float64))
 
     def evaluate(self, points: np.ndarray) -> BezierSurface:
-        """The patches for control points (n, 3)."""
-        points = np.asarray(points, dtype=np.float64)
+        """The patches for control points (n, 3): finite, one row per column of M (MeshError
+        naming ``points`` otherwise), not all on one line (nor on one plane for a closed
+        surface).  The size is the diagonal of the used points only."""
+        points = as_points(points, "points", rows=self.matrix.shape[1])
+        check_points(points, self.used_points, self.topology.is_closed, self.name)
         coeffs = self.coefficients(points)
         groups = []
         for g in self.groups:
             d = g.degree
             block = coeffs[g.row_offset : g.row_offset + g.n_rows].reshape(-1, d + 1, d + 1, 3)
             groups.append(PatchGroup(d, g.faces, block))
-        size = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+        size = used_size(points, self.used_points)  # a stray unused vertex does not count
         return BezierSurface(tuple(groups), self.topology, self.name, size)
+
+    @cached_property
+    def used_points(self) -> np.ndarray:
+        """Column ids (control points) that some coefficient depends on, sorted."""
+        m = self.matrix.tocsr()
+        return np.unique(m.indices[m.data != 0])
 
     @cached_property
     def row_sums(self) -> np.ndarray:

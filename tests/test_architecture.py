@@ -21,7 +21,7 @@ STAGES = (
     "extraordinary", "operator", "evaluation", "fitting", "toolpath",
 )
 #: Leaf modules every stage may use: they import nothing of the stages.
-LEAVES = ("patching.errors", "patching.options", "patching.bernstein", "patching.surface", "patching.util")
+LEAVES = ("patching.errors", "patching.options", "patching.bernstein", "patching.surface", "patching.util", "patching.validation")
 
 
 def modules() -> dict[str, Path]:

@@ -3,7 +3,7 @@ tags (``obj``), meshes made from parameters (``primitives``).  A new input forma
 module here that returns a ``ControlMesh`` (formats that need a third-party library, such as
 USD, live in ``export``)."""
 
-from patching.mesh.control_mesh import INFINITELY_SHARP, ControlMesh, NupatchWarning, from_arrays
+from patching.mesh.control_mesh import INFINITELY_SHARP, MAX_COORDINATE, ControlMesh, NupatchWarning, from_arrays
 from patching.mesh.obj import format_obj, parse_obj, read_obj
 
-__all__ = ["ControlMesh", "NupatchWarning", "INFINITELY_SHARP", "from_arrays", "read_obj", "parse_obj", "format_obj"]
+__all__ = ["ControlMesh", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE", "from_arrays", "read_obj", "parse_obj", "format_obj"]

@@ -124,6 +124,18 @@ def from_arrays(
     about isolated vertices.  Topological checks (manifold, orientation, strips) are made when
     the topology is built.
     """
+    from patching.validation import as_edge_tag, as_faces, as_holes, as_name, as_vertex_tag
+
+    name = as_name(name)
+    if isinstance(vertices, (str, bytes)) or vertices is None:
+        raise MeshError(f"vertices must be an (n, 3) array of numbers, not {type(vertices).__name__}", "vertices")
+    faces = as_faces(faces)
+    intervals = as_edge_tag(intervals, "intervals", KnotError)
+    creases = as_edge_tag(creases, "creases", TagError)
+    corners = as_vertex_tag(corners, "corners")
+    holes = as_holes(holes, "holes")
+    if isinstance(interpolate_boundary, bool) or not isinstance(interpolate_boundary, (int, np.integer)):
+        raise TagError(f"interpolate_boundary must be the integer 0, 1 or 2, not {interpolate_boundary!r}", "interpolate_boundary")
     locations = dict(locations or {})
 
     def where(kind, key):
@@ -137,7 +149,7 @@ def from_arrays(
     except (TypeError, ValueError) as exc:
         raise MeshError(f"vertices are not numbers: {exc}", name) from None
     if verts.ndim != 2 or verts.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (n, 3), got {verts.shape}", name)
+        raise MeshError(f"vertices must have shape (n, 3), got {verts.shape}", f"vertices of {name}")
     bad = np.flatnonzero(~np.isfinite(verts).all(axis=1))
     if bad.size:
         raise MeshError("non-finite vertex coordinate", where("vertex", int(bad[0])))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from patching.mesh.control_mesh import ControlMesh, NupatchWarning, from_arrays
 __all__ = ["read_obj", "parse_obj", "format_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
-_IGNORED = {"vt", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
+_IGNORED = {"maplib", "usemap", "vt", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
 _KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "nupatch_rules"}
 
 
@@ -37,7 +38,11 @@ def read_obj(path: str | os.PathLike) -> ControlMesh:
     path = Path(path)
     where = str(path)
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as fh:
+            head = fh.read(65536)  # sniffed first: /dev/zero or a binary file is not read to its end
+            if b"\0" in head:
+                raise InputFileError("not an OBJ file (binary data)", where)
+            data = head + fh.read()
     except FileNotFoundError:
         raise InputFileError("no such file", where) from None
     except IsADirectoryError:
@@ -63,6 +68,39 @@ def _number(token: str, what: str, loc: str) -> float:
     return value
 
 
+#: OBJ's white space between tokens: ASCII only.  str.split() would also split on U+2028,
+#: U+0085, form feeds and the like, and str.splitlines() would start a new statement there.
+_BLANK = re.compile(r"[ \t\r\f\v]+")
+
+
+def _statements(text: str):
+    """Yield (line number, statement text) for the non-empty statements of OBJ text: physical
+    lines end at "\n" only (a "\r" before it is dropped), a line ending in "\\" continues on
+    the next one (the OBJ specification's continuation), "#" starts a comment, tokens are
+    separated by ASCII blanks and rejoined by single spaces."""
+    pending: list[str] = []
+    first = 0
+    for lineno, raw in enumerate(text.split("\n"), start=1):
+        if raw.endswith("\r"):
+            raw = raw[:-1]
+        if not pending:
+            first = lineno
+        stripped = raw.rstrip(" \t\r\f\v")
+        if stripped.endswith("\\") and "#" not in stripped:
+            pending.append(stripped[:-1])
+            continue
+        pending.append(raw)
+        line = " ".join(pending).split("#", 1)[0]
+        pending = []
+        tokens = [t for t in _BLANK.split(line) if t]
+        if tokens:
+            yield first, " ".join(tokens)
+    if pending:
+        tokens = [t for t in _BLANK.split(" ".join(pending).split("#", 1)[0]) if t]
+        if tokens:
+            yield first, " ".join(tokens)
+
+
 def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> ControlMesh:
     """Parse OBJ text; ``source`` names the file in error messages."""
     vertices: list[tuple[float, float, float]] = []
@@ -77,12 +115,9 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
     face_sharp: dict[tuple[int, int], float] = {}
     warned_vn = False
 
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
+    for lineno, line in _statements(text):
         loc = f"{source}:{lineno}"
-        parts = line.split()
+        parts = line.split(" ")
         key = parts[0]
         if key == "v":
             if len(parts) < 4:
@@ -205,9 +240,11 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
             if math.isnan(value) or value < 0 or (tag == "interval" and math.isinf(value)):
                 raise error(f"{tag} {value} of edge {a}-{b} must be finite and >= 0", loc)
             key = (min(a, b), max(a, b))
+            if key in target and math.isclose(target[key], value, rel_tol=1e-12, abs_tol=0.0):
+                value = target[key]  # equal up to decimal round-off: the first one stands
             if key in target and target[key] != value:
                 raise error(
-                    f"edge {a}-{b} has two {tag} values, {target[key]} and {value}",
+                    f"edge {a}-{b} has two {tag} values, {target[key]!r} and {value!r}",
                     f"{locations[(tag, key)]} and {loc}",
                 )
             target[key] = value
@@ -217,8 +254,10 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
         for v, s in zip(ints, values):
             if math.isnan(s) or s < 0:
                 raise TagError(f"corner sharpness {s} of vertex {v} must be >= 0", loc)
+            if v in corners and math.isclose(corners[v], s, rel_tol=1e-12, abs_tol=0.0):
+                s = corners[v]
             if v in corners and corners[v] != s:
-                raise TagError(f"vertex {v} has two corner values, {corners[v]} and {s}", f"{locations[('corner', v)]} and {loc}")
+                raise TagError(f"vertex {v} has two corner values, {corners[v]!r} and {s!r}", f"{locations[('corner', v)]} and {loc}")
             corners[v] = s
             locations[("corner", v)] = loc
     elif tag == "hole":

@@ -43,6 +43,10 @@ def build_operator(
     Topology if already built; ``force_extraordinary``: interior vertices patched as EPs
     whatever their valence.  OptionError for an unknown option value.
     """
+    if not isinstance(mesh, ControlMesh):
+        raise MeshError(f"mesh must be a ControlMesh (read_mesh or from_arrays), not {type(mesh).__name__}", "mesh")
+    if topology is not None and not isinstance(topology, Topology):
+        raise MeshError(f"topology must be a Topology of the mesh, not {type(topology).__name__}", "topology")
     options = BuildOptions.of(options, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement)
     topo = topology or Topology(mesh)
     # Tears are judged on the user's mesh, before any refinement: refining a zero strip
