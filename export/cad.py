@@ -54,8 +54,10 @@ def to_build123d(
     The object is valid (``BRepCheck_Analyzer``, checked by ``to_shape``) and takes part in
     build123d's booleans (``part - Box(...)``), fillets and exports like any other.
     """
-    import build123d
+    from .ocp_compat import import_cad_library
     from OCP.TopAbs import TopAbs_SOLID
+
+    build123d = import_cad_library("build123d")
 
     shape = _shape(source, angles, anchors, options)
     if shape.ShapeType() == TopAbs_SOLID:
@@ -71,7 +73,8 @@ def to_cadquery(
 ):
     """A ``cadquery.Workplane`` on the XY plane holding one ``cadquery.Solid`` (closed surface)
     or ``cadquery.Shell`` (open surface); ``.val()`` gives that Shape."""
-    import cadquery
+    from .ocp_compat import import_cad_library
 
+    cadquery = import_cad_library("cadquery")
     shape = cadquery.Shape.cast(_shape(source, angles, anchors, options))
     return cadquery.Workplane("XY").add(shape)

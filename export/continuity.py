@@ -40,6 +40,7 @@ import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from .ocp_compat import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape, box_bounds
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
@@ -50,7 +51,6 @@ from OCP.ShapeAnalysis import ShapeAnalysis_Surface
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_FORWARD, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS, TopoDS_Shape
-from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
 
 __all__ = ["EdgeDefect", "ContinuityReport", "check_continuity"]
 
@@ -191,7 +191,7 @@ def _diagonal(shape: TopoDS_Shape) -> float:
     BRepBndLib.Add_s(shape, box, False)  # poles' box for Bézier/B-spline faces: cheap, and >= the surface's
     if box.IsVoid():
         return 0.0
-    x0, y0, z0, x1, y1, z1 = box.Get()
+    x0, y0, z0, x1, y1, z1 = box_bounds(box)
     return math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
 
 

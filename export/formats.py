@@ -109,7 +109,7 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
+    from .ocp_compat import TopTools_IndexedMapOfShape
 
     from .brep import shape_face_rows, to_shape
 

@@ -68,7 +68,7 @@ def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sa
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
+    from .ocp_compat import TopTools_IndexedMapOfShape
 
     BRepMesh_IncrementalMesh(shape, float(tolerance), False, 0.3, False)
     faces = TopTools_IndexedMapOfShape()
