@@ -40,7 +40,7 @@ import os
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from .ocp_compat import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape, box_bounds
+from .ocp_compat import TopoDS, TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape, box_bounds
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
@@ -50,7 +50,7 @@ from OCP.gp import gp_Pnt, gp_Vec
 from OCP.ShapeAnalysis import ShapeAnalysis_Surface
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_FORWARD, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS, TopoDS_Shape
+from OCP.TopoDS import TopoDS_Shape
 
 __all__ = ["EdgeDefect", "ContinuityReport", "check_continuity"]
 

@@ -108,7 +108,7 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
+    from .ocp_compat import TopoDS
     from .ocp_compat import TopTools_IndexedMapOfShape
 
     from .brep import shape_face_rows, to_shape

@@ -10,8 +10,8 @@ supported range, and uses whichever wheel the user's CAD stack brought.  This mo
   wheels overwrite each other's files, and ``pip check`` does not notice), and have a supported
   version (7.9 or 8.0).  Otherwise it raises ``OcpError``: one line saying what is wrong and
   the one command that repairs it;
-- re-exports the OCP names that moved between versions under their OCP 7.9 names.  OCP 8.0
-  moved the NCollection instances (``TColgp_Array2OfPnt``, ``TColStd_Array1OfReal``,
+- re-exports the OCP names that changed between versions under their OCP 7.9 names.  OCP 8.0
+  made ``TopoDS`` (the casts ``TopoDS.Face_s``...) a namespace of plain functions, and moved the NCollection instances (``TColgp_Array2OfPnt``, ``TColStd_Array1OfReal``,
   ``TopTools_IndexedMapOfShape``, ...) from their toolkit modules to ``OCP.collections``
   under template names (``Array2_gp_Pnt``, ``Array1_double``,
   ``IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher``).  Every other module of ``export``
@@ -162,6 +162,21 @@ def require_ocp() -> str:
 OCP_VERSION = require_ocp()
 
 if _major_minor(OCP_VERSION) >= (8, 0):
+    from OCP.TopoDS import TopoDS as _topods  # noqa: E402
+
+    class TopoDS:
+        """OCP 7.9's ``TopoDS`` class of static casts (``TopoDS.Face_s``): OCP 8.0 made
+        ``TopoDS`` a namespace of plain functions (``TopoDS.Face``)."""
+
+        Vertex_s = staticmethod(_topods.Vertex)
+        Edge_s = staticmethod(_topods.Edge)
+        Wire_s = staticmethod(_topods.Wire)
+        Face_s = staticmethod(_topods.Face)
+        Shell_s = staticmethod(_topods.Shell)
+        Solid_s = staticmethod(_topods.Solid)
+        CompSolid_s = staticmethod(_topods.CompSolid)
+        Compound_s = staticmethod(_topods.Compound)
+
     from OCP.collections import (  # noqa: E402
         Array1_double as TColStd_Array1OfReal,
         Array1_gp_Pnt as TColgp_Array1OfPnt,
@@ -173,6 +188,7 @@ if _major_minor(OCP_VERSION) >= (8, 0):
         IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as TopTools_IndexedMapOfShape,
     )
 else:
+    from OCP.TopoDS import TopoDS  # noqa: E402
     from OCP.TColgp import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt  # noqa: E402
     from OCP.TColStd import (  # noqa: E402
         TColStd_Array1OfInteger,

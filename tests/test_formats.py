@@ -17,8 +17,9 @@ from OCP.IFSelect import IFSelect_RetDone
 from OCP.IGESControl import IGESControl_Reader
 from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS, TopoDS_Shape
-from OCP.TopTools import TopTools_IndexedMapOfShape
+from OCP.TopoDS import TopoDS_Shape
+from export.ocp_compat import TopoDS
+from export.ocp_compat import TopTools_IndexedMapOfShape, box_bounds
 
 import export.formats as formats
 import patching
@@ -48,7 +49,7 @@ def exact_box(shape) -> np.ndarray:
     """(2, 3) bounding box of the exact surfaces (not of poles, not enlarged by tolerances)."""
     box = Bnd_Box()
     BRepBndLib.AddOptimal_s(shape, box, False, False)
-    x0, y0, z0, x1, y1, z1 = box.Get()
+    x0, y0, z0, x1, y1, z1 = box_bounds(box)
     return np.array([[x0, y0, z0], [x1, y1, z1]])
 
 
