@@ -98,6 +98,7 @@ class BuildJob:
     anchors: str
     pack: bool = False
     g1_solve: str = "joint"
+    intervals: str = "tags"
 
 
 #: Formats that carry the exact B-rep, so that --pack applies to them.
@@ -111,9 +112,11 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
     is called as each stage starts."""
     from export.brep import to_shape
     from export.formats import write
+    from export.inputs import read_control_mesh
+    from export.streams import output_stream
 
     stage(STAGES[0])
-    mesh = patching.read_mesh(job.mesh)
+    mesh = read_control_mesh(job.mesh, job.intervals)
     stage(STAGES[1])
     pack = job.pack and job.fmt in EXACT_FORMATS
     # --pack merges the patches of one mesh: semi-sharp tags then take the global steps while
@@ -129,7 +132,8 @@ def run_build(job: BuildJob, stage=lambda name: None) -> tuple[int, int]:
         shape = to_shape(surface)
     _warn_folds(surface)  # after the B-rep: a refused surface (no volume) gets its one line only
     stage(f"{STAGES[3]} {job.fmt}")
-    write(surface, job.out, job.fmt, tolerance=job.tolerance, shape=shape)
+    with output_stream(job.out, "." + job.fmt) as out:
+        write(surface, out, job.fmt, tolerance=job.tolerance, shape=shape)
     return mesh.n_faces, surface.n_patches
 
 
@@ -175,26 +179,35 @@ def _jobs(args: argparse.Namespace) -> list[BuildJob]:
         check_tolerance(args.tolerance)
     if args.jobs < 1:
         raise NupatchError(f"-j must be at least 1, not {args.jobs}", "command line")
-    several = len(args.mesh) > 1
+    several = len(args.mesh) + len(args.example or []) > 1
+    if not args.mesh and not args.example:
+        raise NupatchError("give a MESH file or --example NAME (nupatch models lists them)", "command line")
     directory = Path(args.output) if several and args.output else None
     if directory is not None and not directory.is_dir():
         raise NupatchError("with several meshes, -o must name an existing directory", str(directory))
     jobs, seen = [], {}
-    for name in args.mesh:
+    from export.cli_models import example_paths
+
+    for name in args.mesh + example_paths(args.example):
         mesh_path = Path(name)
         suffix = "." + (args.format or "step")
         if directory is not None:
             out = directory / (mesh_path.stem + suffix)
+        elif name == "-" and not args.output:
+            out = Path("-")  # standard input to standard output
         else:
             out = Path(args.output) if args.output else mesh_path.with_suffix(suffix)
-        if out.resolve() == mesh_path.resolve():
+        if str(out) != "-" and out.resolve() == mesh_path.resolve():
             raise NupatchError("the output would overwrite the input mesh", str(out))
         if out.resolve() in seen:
             raise NupatchError(f"{name} and {seen[out.resolve()]} would both be written to {out}", "command line")
         seen[out.resolve()] = name
-        fmt = format_of(out, args.format)
-        check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack, args.g1_solve))
+        from export.streams import check_stream_output
+
+        fmt = format_of(out, args.format or ("step" if str(out) == "-" else None))
+        if not check_stream_output(str(out), fmt, several):
+            check_output_path(out)
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, args.angles, args.anchors, args.pack, args.g1_solve, args.intervals))
     return jobs
 
 
@@ -255,23 +268,27 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     from patching.obj import write_obj
     from patching.subdivision import rules_tag, subdivide
 
+    from export.inputs import read_control_mesh
+    from export.streams import check_stream_output, output_stream
+
     mesh_path = Path(args.mesh)
     out = Path(args.output)
-    if out.resolve() == mesh_path.resolve():
+    if str(out) != "-" and out.resolve() == mesh_path.resolve():
         raise NupatchError("the output would overwrite the input mesh", str(out))
-    if out.suffix.lower() != ".obj":
+    if str(out) != "-" and out.suffix.lower() != ".obj":
         raise NupatchError("subdivide writes OBJ: give OUT a .obj suffix", str(out))
     if args.steps < 0:
         raise NupatchError(f"-n must be a number of steps >= 0, got {args.steps}", "-n")
-    check_output_path(out)
+    if not check_stream_output(str(out), "obj"):
+        check_output_path(out)
     start = time.perf_counter()
-    mesh = patching.read_mesh(mesh_path)
+    mesh = read_control_mesh(mesh_path, args.intervals)
     refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.angles, crease_method=args.crease_method)
     comment = (
         f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
         f"angles {args.angles}, crease method {args.crease_method}"
     )
-    with atomic_path(out) as tmp:
+    with output_stream(out, ".obj") as target, atomic_path(target) as tmp:
         write_obj(refined, tmp, comment=comment)
         with open(tmp, "a", encoding="utf-8") as fh:
             fh.write(rules_tag(args.rules) + "\n")
@@ -282,7 +299,9 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
 def cmd_info(args: argparse.Namespace) -> int:
     import numpy as np
 
-    mesh = patching.read_mesh(args.mesh)
+    from export.inputs import read_control_mesh
+
+    mesh = read_control_mesh(args.mesh, args.intervals)
     topo = patching.Topology(mesh)
     ep = topo.extraordinary
     valences = {int(v): int(c) for v, c in zip(*np.unique(topo.valence[ep], return_counts=True))}
@@ -302,6 +321,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         "boundary_edges": int(np.count_nonzero(topo.edge_is_boundary)),
         "closed": bool(not topo.edge_is_boundary.any()),
         "interpolate_boundary": mesh.interpolate_boundary,
+        "holes": len(mesh.holes),
+        "corner_tags": len(mesh.corners),
     }
     if info["semi_sharp_edges"] == 0 and mesh.is_quad_mesh:
         # what the patch construction makes of the tags (patching.features); meshes that are
@@ -326,18 +347,21 @@ def cmd_info(args: argparse.Namespace) -> int:
         f = info["sharp_features"]
         print(f"  corners: {f['corners']}, darts: {f['darts']}, vertices whose sectors take the EP path: {f['sector_vertices']}")
     print(f"  boundary edges: {info['boundary_edges']} ({'closed' if info['closed'] else 'open'})")
+    print(f"  holes: {info['holes']}, corner tags: {info['corner_tags']}")
     return 0
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     from export.continuity import check_continuity
 
+    from export.shapes_in import read_shape
+
     path = Path(args.file)
-    _require_step(path)
+    shape = read_shape(path)
     if not args.sharp_angle > 0 or not args.g1_tolerance >= 0 or args.worst < 0 or args.samples < 2:
         raise NupatchError("--sharp-angle must be > 0, --g1-tolerance >= 0, --worst >= 0 and --samples >= 2", "command line")
     report = check_continuity(
-        path,
+        shape,
         samples_per_edge=args.samples,
         worst=args.worst,
         sharp_angle_deg=args.sharp_angle,
@@ -390,7 +414,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     else:
         from export.brep import to_shape
 
-        mesh = patching.read_mesh(source)
+        from export.inputs import read_control_mesh
+
+        mesh = read_control_mesh(source, args.intervals)
         surface = patching.build(mesh, angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
         shape = to_shape(surface)
         lines = None
@@ -442,9 +468,11 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     from export.formats import FORMATS
+    from export.inputs import add_intervals_argument
 
     p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
-    p.add_argument("mesh", metavar="MESH", nargs="+", help="control mesh(es), OBJ with OpenSubdiv tags")
+    p.add_argument("mesh", metavar="MESH", nargs="*", help="control mesh(es): OBJ with OpenSubdiv tags, USD, or - (standard input)")
+    p.add_argument("--example", action="append", metavar="NAME", help="a sample model shipped with nupatch (nupatch models lists them)")
     p.add_argument(
         "-o", "--output", metavar="OUT",
         help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
@@ -466,11 +494,13 @@ def _parser() -> argparse.ArgumentParser:
         help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("subdivide", help="refine a control mesh by non-uniform Catmull-Clark subdivision, keeping its tags")
@@ -484,10 +514,11 @@ def _parser() -> argparse.ArgumentParser:
         help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_subdivide)
 
-    p = sub.add_parser("check", help="validity and continuity of a STEP file: per-edge G0/G1 table, sharp edges")
-    p.add_argument("file", metavar="FILE.step")
+    p = sub.add_parser("check", help="validity and continuity of a STEP, IGES or BREP file: per-edge G0/G1 table, sharp edges")
+    p.add_argument("file", metavar="FILE", help="STEP, IGES or BREP file (told by its header)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--worst", type=int, default=CHECK_DEFAULTS["worst"], metavar="N", help=f"list the N worst edges by normal jump and by gap (default {CHECK_DEFAULTS['worst']})")
     p.add_argument("--all", action="store_true", help="list every shared edge")
@@ -521,7 +552,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--anchors", choices=ANCHORS, default="eigen-polyhedron", help="as for build")
     p.add_argument("--g1-solve", choices=G1_SOLVES, default="joint", help="as for build")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_render)
+
+    from export import cli_models
+
+    cli_models.add_parser(sub)
     return parser
 
 
