@@ -46,26 +46,53 @@ def to_cadquery(source, angles: str = "optimized", anchors: str = "eigen-polyhed
 
 
 def write(surface: BezierSurface, path: str | os.PathLike, format: str | None = None, *, tolerance: float | None = None) -> Path:
-    """Write ``surface`` atomically as step, iges, brep, stl, glb or obj (default: from the
-    suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
+    """Write ``surface`` atomically as step, iges, brep, stl, glb, obj or 3dm (default: from
+    the suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
     from .formats import write as _write
 
     return _write(surface, path, format, tolerance=tolerance)
 
 
 def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:
+    """Write a TopoDS_Shape atomically as STEP (millimetres, product ``product_name``)."""
     from .step import write_step as _write_step
 
     return _write_step(shape, path, product_name)
 
 
 def read_step(path: str | os.PathLike):
+    """Every root of a STEP file as one TopoDS_Shape (a compound if several)."""
     from .step import read_step as _read_step
 
     return _read_step(path)
 
 
-def check_continuity(shape_or_path, **kwargs):
+def check_continuity(
+    shape_or_path,
+    samples_per_edge: int = 9,
+    *,
+    worst: int = 5,
+    sharp_angle_deg: float = 10.0,
+    g1_tolerance_deg: float = 1e-5,
+    gap_tolerance: float = 1e-7,
+    all_edges: bool = False,
+    face_ids=None,
+):
+    """Validity, free edges, gaps and normal jumps (``ContinuityReport``) of a shape, a
+    ``BezierSurface`` or a STEP, IGES or BREP file (DESIGN 5; ``export.continuity``).
+
+    samples_per_edge: points per shared edge, ends included (>= 2); worst: edges listed in the
+    report; sharp_angle_deg: a jump at least this large all along an edge makes it sharp;
+    g1_tolerance_deg: the largest jump of a G1 edge; gap_tolerance: positional gap, relative
+    to the diagonal, above which an edge is open; all_edges: keep every edge in the report;
+    face_ids: face index -> id used in the report.
+    """
     from .continuity import check_continuity as _check
 
-    return _check(shape_or_path, **kwargs)
+    if isinstance(shape_or_path, (str, os.PathLike)):
+        from .shapes_in import read_shape
+
+        shape_or_path = read_shape(shape_or_path)
+    return _check(shape_or_path, samples_per_edge, worst=worst, sharp_angle_deg=sharp_angle_deg,
+                  g1_tolerance_deg=g1_tolerance_deg, gap_tolerance=gap_tolerance, all_edges=all_edges,
+                  face_ids=face_ids)

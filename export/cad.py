@@ -27,11 +27,13 @@ def as_surface(
     anchors: str = "eigen-polyhedron",
     **options,
 ) -> BezierSurface:
-    """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ)."""
+    """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ, USD)."""
     if isinstance(source, BezierSurface):
         return source
     if isinstance(source, (str, os.PathLike)):
-        source = patching.read_mesh(source)
+        from .inputs import read_control_mesh
+
+        source = read_control_mesh(source)
     if isinstance(source, ControlMesh):
         return patching.build(source, angles=angles, anchors=anchors, **options)
     raise TypeError(f"expected a BezierSurface, a ControlMesh or a mesh path, not {type(source).__name__}")

@@ -225,3 +225,21 @@ def test_reprs_are_short():
     text = repr(surface)
     assert text.startswith("BezierSurface('l_bracket', 198 patches: ") and len(text) < 120
     assert all(len(repr(g)) < 60 for g in surface.groups)
+
+
+def test_check_continuity_shows_its_options_with_the_modules_defaults(tmp_path):
+    import inspect
+
+    import export
+    import export.continuity as continuity
+    from export.formats import write
+
+    public = inspect.signature(export.check_continuity).parameters
+    inner = inspect.signature(continuity.check_continuity).parameters
+    assert list(public) == list(inner)
+    assert all(public[k].default == inner[k].default for k in inner)
+    assert "samples_per_edge" in export.check_continuity.__doc__
+    surface = patching.build(patching.read_mesh(REPO / "models" / "clamped_grid.obj"))
+    path = write(surface, tmp_path / "g.brep")
+    report = export.check_continuity(path, worst=2)
+    assert report.valid and report.n_faces == surface.n_patches
