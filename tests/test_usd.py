@@ -204,7 +204,10 @@ t corner 1/1/0 0 10
 """
 
 
-def test_a_crease_loop_written_as_one_run_like_blender_writes_it(tmp_path, run_cli):
+def test_a_crease_loop_written_as_one_run_like_blender_writes_it(tmp_path, capsys):
+    import export
+    from export.cli import main
+
     path = tmp_path / "cube.usda"
     path.write_text(BLENDER_LIKE)
     obj_path = tmp_path / "cube.obj"
@@ -212,32 +215,28 @@ def test_a_crease_loop_written_as_one_run_like_blender_writes_it(tmp_path, run_c
     usd, obj = read_usd(path), patching.read_mesh(obj_path)
     assert len(usd.creases) == 4 and usd.corners == {0: 10.0}
     assert_same_surface(usd, obj)
-    # both build and check with the same four sharp edges
+    # the B-reps have the same sharp edges: four, at the same places
     sharp = []
-    for src in (path, obj_path):
-        out = tmp_path / f"{src.suffix[1:]}.step"
-        result = run_cli("build", src, "-o", out, "-q")
-        assert result.returncode == 0, result.stderr
-        result = run_cli("check", out, "--json")
-        assert result.returncode == 0, result.stderr
-        report = json.loads(result.stdout)
-        sharp.append(report["sharp_edges"] if "sharp_edges" in report else report)
+    for mesh in (usd, obj):
+        report = export.check_continuity(patching.build(mesh))
+        assert report.valid and report.n_sharp_edges == 4
+        sharp.append(sorted(tuple(np.round(e.position, 9)) for e in report.sharp_edges))
     assert sharp[0] == sharp[1]
-    # stdin: the same stage as text
-    result = run_cli("info", path, "--json")
-    info = json.loads(result.stdout)
+    assert main(["info", str(path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
     assert info["sharp_edges"] == 4 and info["corner_tags"] == 1 and info["holes"] == 0
 
 
-def test_info_reports_holes_and_corners_for_obj_and_usd(tmp_path, run_cli):
+def test_info_reports_holes_and_corners_for_obj_and_usd(tmp_path, capsys):
+    from export.cli import main
+
     obj_path = shape("catmark_hole_test1.obj")
     obj = patching.read_mesh(obj_path)
     usd_path = write_stage(obj, tmp_path / "h.usda")
     infos = []
     for src in (obj_path, usd_path):
-        result = run_cli("info", src, "--json")
-        assert result.returncode == 0, result.stderr
-        infos.append(json.loads(result.stdout))
+        assert main(["info", str(src), "--json"]) == 0
+        infos.append(json.loads(capsys.readouterr().out))
     assert infos[0]["holes"] == infos[1]["holes"] == len(obj.holes) > 0
     assert infos[0]["corner_tags"] == infos[1]["corner_tags"] == len(obj.corners)
 
@@ -248,6 +247,17 @@ def _one_line_error(result, *needles):
     assert len(lines) == 1 and lines[0].startswith("nupatch: error: "), result.stderr
     for needle in needles:
         assert needle in lines[0], lines[0]
+
+
+def _main(capsys, *args):
+    """``nupatch ARGS`` in this process (export.cli.main), as a CompletedProcess-like result."""
+    from types import SimpleNamespace
+
+    from export.cli import main
+
+    code = main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return SimpleNamespace(returncode=code, stdout=captured.out, stderr=captured.err)
 
 
 def _mesh_stage(path: Path, points, counts, indices, scheme=None):
@@ -265,25 +275,26 @@ def _mesh_stage(path: Path, points, counts, indices, scheme=None):
 SQUARE = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
 
 
-def test_bad_usd_input_is_one_line_naming_the_prim(tmp_path, run_cli):
+def test_bad_usd_input_is_one_line_naming_the_prim(tmp_path, run_cli, capsys):
     out = tmp_path / "out.step"
     empty = tmp_path / "empty.usda"
     stage = Usd.Stage.CreateNew(str(empty))
     UsdGeom.Xform.Define(stage, "/world")
     stage.GetRootLayer().Save()
-    _one_line_error(run_cli("build", empty, "-o", out), "no UsdGeom.Mesh prim", "empty.usda")
+    _one_line_error(_main(capsys, "build", empty, "-o", out), "no UsdGeom.Mesh prim", "empty.usda")
     # an edge shared by three faces
     pts = SQUARE + [(1, 0, 1), (1, 1, 1), (1, 0, -1), (1, 1, -1)]
     nonman = _mesh_stage(tmp_path / "nonman.usda", pts, [4, 4, 4], [0, 1, 2, 3, 1, 4, 5, 2, 2, 7, 6, 1])
-    _one_line_error(run_cli("build", nonman, "-o", out), "non-manifold", "/world/bad")
+    _one_line_error(_main(capsys, "build", nonman, "-o", out), "non-manifold", "/world/bad")
     nan = _mesh_stage(tmp_path / "nan.usda", [(0, 0, 0), (1, float("nan"), 0), (1, 1, 0), (0, 1, 0)], [4], [0, 1, 2, 3])
-    _one_line_error(run_cli("build", nan, "-o", out), "not finite", "/world/bad")
+    _one_line_error(_main(capsys, "build", nan, "-o", out), "not finite", "/world/bad")
     loop = _mesh_stage(tmp_path / "loop.usda", SQUARE, [3, 3], [0, 1, 2, 0, 2, 3], scheme="loop")
-    _one_line_error(run_cli("build", loop, "-o", out), "subdivisionScheme 'loop'", "/world/bad")
-    _one_line_error(run_cli("info", loop), "subdivisionScheme 'loop'", "/world/bad")
+    _one_line_error(_main(capsys, "info", loop), "subdivisionScheme 'loop'", "/world/bad")
     garbage = tmp_path / "garbage.usda"
     garbage.write_text("#usda 1.0\ndef Mesh \"x\" { this is not usd\n")
-    _one_line_error(run_cli("build", garbage, "-o", out), "not a USD stage", "garbage.usda")
+    _one_line_error(_main(capsys, "build", garbage, "-o", out), "not a USD stage", "garbage.usda")
+    # and once through a fresh `nupatch` process
+    _one_line_error(run_cli("build", loop, "-o", out), "subdivisionScheme 'loop'", "/world/bad")
     assert not out.exists() and not list(tmp_path.glob("*.step*"))
 
 
