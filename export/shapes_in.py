@@ -37,7 +37,7 @@ def shape_format(path: str | os.PathLike) -> str:
     first = head.split(b"\n", 1)[0].rstrip(b"\r")
     if len(first) >= 73 and first[72:73] == b"S":
         return "iges"
-    raise InputFileError("not a STEP, IGES or BREP file (unknown header)", str(path))
+    raise InputFileError("not a STEP file, nor IGES or BREP (unknown header)", str(path))
 
 
 def read_shape(path: str | os.PathLike):

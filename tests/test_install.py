@@ -214,7 +214,7 @@ def test_check_reads_step_iges_and_brep(tmp_path, capsys):
     bad.write_text("hello\n")
     assert main(["check", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "not a STEP, IGES or BREP file" in err[0]
+    assert len(err) == 1 and "not a STEP file, nor IGES or BREP" in err[0]
 
 
 def test_reprs_are_short():
