@@ -147,15 +147,20 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
                     "(one per edge in faceVertexIndices order)", where,
                 )
             a, b = np.minimum(fvi, fvi[nxt]), np.maximum(fvi, fvi[nxt])
-            for i in range(values.size):
-                key, d = (int(a[i]) + n_v, int(b[i]) + n_v), float(values[i])
-                if not (math.isfinite(d) and d >= 0):
-                    raise KnotError(f"knot interval {d:g} of edge {a[i]}-{b[i]} must be finite and >= 0", where)
-                old = intervals.get(key)
-                if old is not None and old != d:
-                    raise KnotError(f"edge {a[i]}-{b[i]} has two knot intervals, {old:g} and {d:g}", where)
-                intervals[key] = d
-                locations[("interval", key)] = where
+            bad = np.flatnonzero(~(np.isfinite(values) & (values >= 0)))
+            if bad.size:
+                i = int(bad[0])
+                raise KnotError(f"knot interval {values[i]:g} of edge {a[i]}-{b[i]} must be finite and >= 0", where)
+            # the two face-vertices of an interior edge must agree
+            order = np.lexsort((values, b, a))
+            sa, sb, sv = a[order], b[order], values[order]
+            clash = np.flatnonzero((sa[1:] == sa[:-1]) & (sb[1:] == sb[:-1]) & (sv[1:] != sv[:-1]))
+            if clash.size:
+                i = int(clash[0])
+                raise KnotError(f"edge {sa[i]}-{sb[i]} has two knot intervals, {sv[i]:g} and {sv[i + 1]:g}", where)
+            keys = zip((a + n_v).tolist(), (b + n_v).tolist())
+            intervals.update(zip(keys, values.tolist()))
+            locations.update(dict.fromkeys((("interval", k) for k in zip((a + n_v).tolist(), (b + n_v).tolist())), where))
         flip = (_get(mesh.GetOrientationAttr(), Usd) == "leftHanded") != bool(np.linalg.det(matrix[:3, :3]) < 0)
         if flip:  # reverse each face, keeping its first vertex (the edges stay the same)
             fvi = fvi[face_start + np.where(local == 0, 0, np.repeat(fvc, fvc) - local)]

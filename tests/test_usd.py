@@ -293,6 +293,13 @@ def test_bad_usd_input_is_one_line_naming_the_prim(tmp_path, run_cli, capsys):
     garbage = tmp_path / "garbage.usda"
     garbage.write_text("#usda 1.0\ndef Mesh \"x\" { this is not usd\n")
     _one_line_error(_main(capsys, "build", garbage, "-o", out), "not a USD stage", "garbage.usda")
+    # the two face-vertices of edge 1-2 give it different intervals
+    clash = _mesh_stage(tmp_path / "clash.usda", SQUARE + [(2, 0, 0), (2, 1, 0)], [4, 4], [0, 1, 2, 3, 1, 4, 5, 2])
+    stage = Usd.Stage.Open(str(clash))
+    UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/world/bad")).CreatePrimvar(
+        "nupatch:intervals", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.faceVarying).Set([1, 2, 1, 2, 3, 2, 3, 2.5])
+    stage.GetRootLayer().Save()
+    _one_line_error(_main(capsys, "build", clash, "-o", out), "edge 1-2 has two knot intervals, 2 and 2.5", "/world/bad")
     # and once through a fresh `nupatch` process
     _one_line_error(run_cli("build", loop, "-o", out), "subdivisionScheme 'loop'", "/world/bad")
     assert not out.exists() and not list(tmp_path.glob("*.step*"))
