@@ -89,7 +89,9 @@ def test_3dm_through_the_cli_and_the_registry(tmp_path, run_cli):
     assert result.returncode == 0, result.stderr
     model = rhino3dm.File3dm.Read(str(out))
     mesh = patching.read_mesh(REPO / "models" / "clamped_grid.obj")
-    assert len(model.Objects) == mesh.n_faces
+    surface = patching.build(mesh)
+    assert len(model.Objects) == surface.n_patches  # faces on its zero-interval (clamping) strips give none
+    assert sorted(o.Attributes.Name for o in model.Objects) == sorted(f"clamped_grid face {f}" for _, _, f, _ in surface.patches())
     assert all(o.Geometry.IsValid for o in model.Objects)
     assert {o.Geometry.Degree(0) for o in model.Objects} <= {3, 5}
     result = run_cli("build", REPO / "models" / "clamped_grid.obj", "-o", tmp_path / "x.out", "--format", "3dm", "-q")
