@@ -42,7 +42,7 @@ def occ_floor(nets: list[np.ndarray], path: Path) -> tuple[float, float]:
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.Geom import Geom_BezierSurface
     from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array2OfPnt
+    from export.ocp_compat import TColgp_Array2OfPnt
     from OCP.TopoDS import TopoDS_Compound
 
     start = time.perf_counter()

@@ -42,7 +42,7 @@ def occ_writer(fmt: str, shape, path: Path):
         from OCP.Message import Message_ProgressRange
         from OCP.RWGltf import RWGltf_CafWriter
         from OCP.TCollection import TCollection_AsciiString, TCollection_ExtendedString
-        from OCP.TColStd import TColStd_IndexedDataMapOfStringString
+        from export.ocp_compat import TColStd_IndexedDataMapOfStringString
         from OCP.TDocStd import TDocStd_Document
         from OCP.XCAFDoc import XCAFDoc_DocumentTool
 

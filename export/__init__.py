@@ -15,6 +15,8 @@ import os
 from pathlib import Path
 
 from patching.options import BuildOptions
+
+from export.tolerances import G1_TOLERANCE_DEG, GAP_TOLERANCE, N_WORST, SHARP_ANGLE_DEG
 from patching.surface import BezierSurface
 
 __all__ = ["build_file", "to_shape", "to_step", "to_build123d", "to_cadquery", "write", "write_obj", "write_step", "read_step", "check_continuity"]
@@ -72,9 +74,9 @@ def to_cadquery(source, options: BuildOptions | None = None, **option_fields: st
 
 
 def write(surface: BezierSurface, path: str | os.PathLike, format: str | None = None, *, tolerance: float | None = None) -> Path:
-    """Write ``surface`` atomically as step, iges, brep, stl, glb or obj (default: from the
-    suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
-    from export.formats import write as _write
+    """Write ``surface`` atomically as step, iges, brep, stl, glb, obj or 3dm (default: from
+    the suffix); ``tolerance`` is the tessellation's linear deflection (``export.formats``)."""
+    from .formats import write as _write
 
     return _write(surface, path, format, tolerance=tolerance)
 
@@ -90,18 +92,45 @@ def write_obj(mesh, path: str | os.PathLike, comment: str = "") -> None:
 
 
 def write_step(shape, path: str | os.PathLike, product_name: str) -> Path:
-    from export.step import write_step as _write_step
+    """Write a TopoDS_Shape atomically as STEP (millimetres, product ``product_name``)."""
+    from .step import write_step as _write_step
 
     return _write_step(shape, path, product_name)
 
 
 def read_step(path: str | os.PathLike):
-    from export.step import read_step as _read_step
+    """Every root of a STEP file as one TopoDS_Shape (a compound if several)."""
+    from .step import read_step as _read_step
 
     return _read_step(path)
 
 
-def check_continuity(shape_or_path, **kwargs):
-    from export.continuity import check_continuity as _check
+def check_continuity(
+    shape_or_path,
+    samples_per_edge: int = 9,
+    *,
+    worst: int = N_WORST,
+    sharp_angle_deg: float = SHARP_ANGLE_DEG,
+    g1_tolerance_deg: float = G1_TOLERANCE_DEG,
+    gap_tolerance: float = GAP_TOLERANCE,
+    all_edges: bool = False,
+    face_ids=None,
+):
+    """Validity, free edges, gaps and normal jumps (``ContinuityReport``) of a shape, a
+    ``BezierSurface`` or a STEP, IGES or BREP file (docs/verification.md; ``export.continuity``).
 
-    return _check(shape_or_path, **kwargs)
+    samples_per_edge: points per shared edge, ends included (>= 2); worst: edges listed in the
+    report; sharp_angle_deg: a jump at least this large all along an edge makes it sharp;
+    g1_tolerance_deg: the largest jump of a G1 edge; gap_tolerance: positional gap, relative
+    to the diagonal, above which an edge is open; all_edges: keep every edge in the report;
+    face_ids: face index -> id used in the report.
+    """
+    from .continuity import check_continuity as _check
+
+    if isinstance(shape_or_path, (str, os.PathLike)):
+        from .shapes_in import read_shape
+
+        shape_or_path = read_shape(shape_or_path)
+    return _check(shape_or_path, samples_per_edge, worst=worst, sharp_angle_deg=sharp_angle_deg,
+                  g1_tolerance_deg=g1_tolerance_deg, gap_tolerance=gap_tolerance, all_edges=all_edges,
+                  face_ids=face_ids)

@@ -115,7 +115,7 @@ def estimate_shape_triangles(shape, tolerance: float) -> int:
     from OCP.GeomAbs import GeomAbs_BezierSurface, GeomAbs_BSplineSurface
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
+    from export.ocp_compat import TopoDS
 
     total = 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)

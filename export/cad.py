@@ -27,12 +27,14 @@ def as_surface(
     **option_fields: str,
 ) -> BezierSurface:
     """The BezierSurface of a surface (returned as is), a control mesh, or a mesh file (OBJ),
-    built with ``options`` (or its fields as keywords: angles, anchors, interior, g1_solve,
+    OBJ or USD, built with ``options`` (or its fields as keywords: angles, anchors, interior, g1_solve,
     refinement)."""
     if isinstance(source, BezierSurface):
         return source
     if isinstance(source, (str, os.PathLike)):
-        source = patching.read_mesh(source)
+        from .inputs import read_control_mesh
+
+        source = read_control_mesh(source)
     if isinstance(source, ControlMesh):
         return patching.build(source, BuildOptions.of(options, **option_fields))
     raise TypeError(f"expected a BezierSurface, a ControlMesh or a mesh path, not {type(source).__name__}")
@@ -50,9 +52,10 @@ def to_build123d(source: BezierSurface | ControlMesh | str | os.PathLike, option
     The object is valid (``BRepCheck_Analyzer``, checked by ``to_shape``) and takes part in
     build123d's booleans (``part - Box(...)``), fillets and exports like any other.
     """
-    import build123d
+    from .ocp_compat import import_cad_library
     from OCP.TopAbs import TopAbs_SOLID
 
+    build123d = import_cad_library("build123d")
     shape = _shape(source, options, option_fields)
     if shape.ShapeType() == TopAbs_SOLID:
         return build123d.Solid(shape)
@@ -62,7 +65,8 @@ def to_build123d(source: BezierSurface | ControlMesh | str | os.PathLike, option
 def to_cadquery(source: BezierSurface | ControlMesh | str | os.PathLike, options: BuildOptions | None = None, **option_fields: str):
     """A ``cadquery.Workplane`` on the XY plane holding one ``cadquery.Solid`` (closed surface)
     or ``cadquery.Shell`` (open surface); ``.val()`` gives that Shape."""
-    import cadquery
+    from .ocp_compat import import_cad_library
 
+    cadquery = import_cad_library("cadquery")
     shape = cadquery.Shape.cast(_shape(source, options, option_fields))
     return cadquery.Workplane("XY").add(shape)

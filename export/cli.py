@@ -94,26 +94,32 @@ def _jobs(args: argparse.Namespace) -> list:
         check_tolerance(args.tolerance)
     if args.jobs < 1:
         raise NupatchError(f"-j must be at least 1, not {args.jobs}", "command line")
-    several = len(args.mesh) > 1
+    several = len(args.mesh) + len(args.example or []) > 1
+    if not args.mesh and not args.example:
+        raise NupatchError("give a MESH file or --example NAME (nupatch models lists them)", "command line")
     directory = Path(args.output) if several and args.output else None
     if directory is not None and not directory.is_dir():
         raise NupatchError("with several meshes, -o must name an existing directory", str(directory))
     jobs, seen = [], {}
-    for name in args.mesh:
+    from export.cli_models import example_paths
+
+    for name in args.mesh + example_paths(args.example):
         mesh_path = Path(name)
         suffix = "." + (args.format or "step")
         if directory is not None:
             out = directory / (mesh_path.stem + suffix)
+        elif name == "-" and not args.output:
+            out = Path("-")  # standard input to standard output
         else:
             out = Path(args.output) if args.output else mesh_path.with_suffix(suffix)
-        if out.resolve() == mesh_path.resolve():
+        if str(out) != "-" and out.resolve() == mesh_path.resolve():
             raise NupatchError("the output would overwrite the input mesh", str(out))
         if out.resolve() in seen:
             raise NupatchError(f"{name} and {seen[out.resolve()]} would both be written to {out}", "command line")
         seen[out.resolve()] = name
         fmt = format_of(out, args.format)
         check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, _options(args), args.pack))
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, _options(args), args.pack, args.intervals))
     return jobs
 
 
@@ -181,9 +187,11 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     from patching.mesh import format_obj
     from patching.subdivision.catmark import rules_tag, subdivide
 
+    from export.inputs import read_control_mesh
+
     mesh_path = Path(args.mesh)
     out = Path(args.output)
-    if out.resolve() == mesh_path.resolve():
+    if str(out) != "-" and out.resolve() == mesh_path.resolve():
         raise NupatchError("the output would overwrite the input mesh", str(out))
     if out.suffix.lower() != ".obj" and str(out) != "-":
         raise NupatchError("subdivide writes OBJ: give OUT a .obj suffix", str(out))
@@ -191,7 +199,7 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
         raise NupatchError(f"-n must be a number of steps >= 0, got {args.steps}", "-n")
     check_output_path(out)
     start = time.perf_counter()
-    mesh = patching.read_mesh(mesh_path)
+    mesh = read_control_mesh(mesh_path, args.intervals)
     refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
     comment = (
         f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
@@ -205,7 +213,9 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
 def cmd_info(args: argparse.Namespace) -> int:
     from patching.topology.summary import mesh_summary
 
-    mesh = patching.read_mesh(args.mesh)
+    from export.inputs import read_control_mesh
+
+    mesh = read_control_mesh(args.mesh, args.intervals)
     info = mesh_summary(mesh)
     valences, intervals = info["extraordinary_points"]["by_valence"], info["intervals"]
     if args.json:
@@ -220,18 +230,21 @@ def cmd_info(args: argparse.Namespace) -> int:
         f = info["sharp_features"]
         print(f"  corners: {f['corners']}, darts: {f['darts']}, vertices whose sectors take the EP path: {f['sector_vertices']}")
     print(f"  boundary edges: {info['boundary_edges']} ({'closed' if info['closed'] else 'open'})")
+    print(f"  holes: {info['holes']}, corner tags: {info['corner_tags']}")
     return 0
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     from export.continuity import check_continuity
 
+    from export.shapes_in import read_shape
+
     path = Path(args.file)
-    _require_step(path)
+    shape = read_shape(path)
     if not args.sharp_angle > 0 or not args.g1_tolerance >= 0 or args.worst < 0 or args.samples < 2:
         raise NupatchError("--sharp-angle must be > 0, --g1-tolerance >= 0, --worst >= 0 and --samples >= 2", "command line")
     report = check_continuity(
-        path,
+        shape,
         samples_per_edge=args.samples,
         worst=args.worst,
         sharp_angle_deg=args.sharp_angle,
@@ -290,7 +303,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     else:
         from export.brep import to_shape
 
-        mesh = patching.read_mesh(source)
+        from export.inputs import read_control_mesh
+
+        mesh = read_control_mesh(source, args.intervals)
         surface = patching.build(mesh, _options(args))
         shape = to_shape(surface)
         lines = None
@@ -357,9 +372,11 @@ def _parser() -> argparse.ArgumentParser:
 
     from export.formats import FORMATS
     from patching.subdivision.catmark import ANGLE_CHOICES, CREASE_METHODS, RULE_SETS
+    from export.inputs import add_intervals_argument
 
     p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
-    p.add_argument("mesh", metavar="MESH", nargs="+", help="control mesh(es), OBJ with OpenSubdiv tags")
+    p.add_argument("mesh", metavar="MESH", nargs="*", help="control mesh(es): OBJ with OpenSubdiv tags, USD, or - (standard input)")
+    p.add_argument("--example", action="append", metavar="NAME", help="a sample model shipped with nupatch (nupatch models lists them)")
     p.add_argument(
         "-o", "--output", metavar="OUT",
         help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
@@ -381,11 +398,13 @@ def _parser() -> argparse.ArgumentParser:
         help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("subdivide", help="refine a control mesh by non-uniform Catmull-Clark subdivision, keeping its tags")
@@ -405,10 +424,11 @@ def _parser() -> argparse.ArgumentParser:
     from export.subdivided import add_arguments as _subdivided_arguments  # --scheme, --normals
 
     _subdivided_arguments(p)
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_subdivide)
 
-    p = sub.add_parser("check", help="validity and continuity of a STEP file: per-edge G0/G1 table, sharp edges")
-    p.add_argument("file", metavar="FILE.step")
+    p = sub.add_parser("check", help="validity and continuity of a STEP, IGES or BREP file: per-edge G0/G1 table, sharp edges")
+    p.add_argument("file", metavar="FILE", help="STEP, IGES or BREP file (told by its header)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--worst", type=int, default=CHECK_DEFAULTS["worst"], metavar="N", help=f"list the N worst edges by normal jump and by gap (default {CHECK_DEFAULTS['worst']})")
     p.add_argument("--all", action="store_true", help="list every shared edge")
@@ -444,6 +464,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="VTK off-screen, or matplotlib Agg (auto: VTK, matplotlib if VTK has no context)")
     _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    add_intervals_argument(p)
     p.set_defaults(func=cmd_render)
 
     from export import cli_curve
@@ -452,6 +473,9 @@ def _parser() -> argparse.ArgumentParser:
     from export import cli_fit
 
     cli_fit.add_parser(sub)
+    from export import cli_models
+
+    cli_models.add_parser(sub)
     return parser
 
 

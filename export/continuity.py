@@ -52,6 +52,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from export.tolerances import G1_TOLERANCE_DEG, GAP_TOLERANCE, N_WORST, SHARP_ANGLE_DEG
+from .ocp_compat import TopoDS, TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape, box_bounds
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
@@ -69,8 +70,7 @@ from OCP.TopAbs import (
     TopAbs_VERTEX,
 )
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS, TopoDS_Shape
-from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
+from OCP.TopoDS import TopoDS_Shape
 
 __all__ = ["EdgeDefect", "ContinuityReport", "check_continuity"]
 
@@ -208,7 +208,7 @@ def shape_diagonal(shape: TopoDS_Shape) -> float:
     BRepBndLib.Add_s(shape, box, False)  # poles' box for Bézier/B-spline faces: cheap, and >= the surface's
     if box.IsVoid():
         return 0.0
-    x0, y0, z0, x1, y1, z1 = box.Get()
+    x0, y0, z0, x1, y1, z1 = box_bounds(box)
     return math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
 
 

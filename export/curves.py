@@ -46,8 +46,8 @@ def to_geom_curve(spline: BSplineCurve | Curve):
     """An OpenCASCADE ``Geom_BSplineCurve`` with the limit's poles, knots and degree."""
     from OCP.Geom import Geom_BSplineCurve
     from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array1OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from export.ocp_compat import TColgp_Array1OfPnt
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     if isinstance(spline, Curve):
         spline = spline.limit()

@@ -83,8 +83,8 @@ def tessellate(surface: BezierSurface, shape=None, tolerance: float | None = Non
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
+    from .ocp_compat import TopoDS
+    from .ocp_compat import TopTools_IndexedMapOfShape
 
     from export.brep import shape_face_rows, to_shape
 
@@ -263,6 +263,12 @@ def _write_glb(job: ExportJob, tmp: Path) -> None:
         fh.write(struct.pack("<II", len(blob), 0x004E4942) + bytes(blob))
 
 
+def _write_3dm(job: ExportJob, tmp: Path) -> None:
+    from .rhino import write_3dm
+
+    write_3dm(job.surface, tmp)
+
+
 #: Format name -> writer(job, tmp_path).  Adding a format is one function and one entry.
 WRITERS: dict[str, Callable[[ExportJob, Path], None]] = {
     "step": _write_step,
@@ -271,11 +277,12 @@ WRITERS: dict[str, Callable[[ExportJob, Path], None]] = {
     "stl": _write_stl,
     "glb": _write_glb,
     "obj": _write_obj,
+    "3dm": _write_3dm,
 }
 FORMATS = tuple(WRITERS)
 #: File suffix -> format, for ``format_of``.
 SUFFIXES = {".step": "step", ".stp": "step", ".iges": "iges", ".igs": "iges", ".brep": "brep",
-            ".stl": "stl", ".glb": "glb", ".obj": "obj"}
+            ".stl": "stl", ".glb": "glb", ".obj": "obj", ".3dm": "3dm"}
 
 
 def format_of(path: str | os.PathLike, fmt: str | None = None) -> str:

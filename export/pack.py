@@ -34,11 +34,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from .ocp_compat import TColgp_Array2OfPnt
+from .ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.BRep import BRep_Builder
 from OCP.Geom import Geom_BSplineSurface
 from OCP.gp import gp_Pnt
-from OCP.TColgp import TColgp_Array2OfPnt
-from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
 from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
 

@@ -30,7 +30,8 @@ class BuildJob:
 
     mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
     deflection of tessellated formats (None: their default); options: the build's choices;
-    pack: regular regions as multi-span B-spline faces (exact formats only)."""
+    pack: regular regions as multi-span B-spline faces (exact formats only); intervals: how
+    strips without interval tags get theirs (``patching.intervals``)."""
 
     mesh: str
     out: str
@@ -38,6 +39,7 @@ class BuildJob:
     tolerance: float | None = None
     options: BuildOptions = field(default_factory=BuildOptions)
     pack: bool = False
+    intervals: str = "tags"
 
 
 @dataclass(frozen=True)
@@ -56,9 +58,10 @@ def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -
     is called as each stage starts.  Raises the NupatchError family on bad input."""
     from export.brep import to_shape
     from export.formats import write
+    from export.inputs import read_control_mesh
 
     stage(STAGES[0])
-    mesh = patching.read_mesh(job.mesh)
+    mesh = read_control_mesh(job.mesh, job.intervals)
     stage(STAGES[1])
     pack = job.pack and job.fmt in EXACT_FORMATS
     # Packing merges the patches of one mesh: semi-sharp tags then take the global steps while

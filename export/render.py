@@ -67,8 +67,8 @@ def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sa
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
+    from .ocp_compat import TopoDS
+    from .ocp_compat import TopTools_IndexedMapOfShape
 
     BRepMesh_IncrementalMesh(shape, float(tolerance), False, 0.3, False)
     faces = TopTools_IndexedMapOfShape()

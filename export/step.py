@@ -18,6 +18,7 @@ import contextlib
 import os
 from pathlib import Path
 
+from .ocp_compat import OCP_VERSION  # noqa: F401  (first: one line if OpenCASCADE is missing or mixed)
 from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.IFSelect import IFSelect_RetDone

@@ -153,7 +153,7 @@ def read_step_checked(path: str | os.PathLike):
     from OCP.STEPControl import STEPControl_Reader
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp
-    from OCP.TopTools import TopTools_IndexedMapOfShape
+    from export.ocp_compat import TopTools_IndexedMapOfShape
 
     path = require_step_header(path)
     where = str(path)

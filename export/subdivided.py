@@ -74,8 +74,8 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
     """Write ``result`` as binary glTF with a NORMAL attribute, atomically (trimesh)."""
     try:
         import trimesh
-    except ImportError:  # pragma: no cover - trimesh is a core dependency of export
-        raise NupatchError("writing .glb needs trimesh (pip install trimesh)") from None
+    except ImportError:
+        raise NupatchError("writing .glb needs trimesh: pip install 'nupatch[mesh]'", str(path)) from None
     verts, normals, tris = _split_for_glb(result)
     mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_normals=normals, process=False)
     data = mesh.export(file_type="glb", include_normals=normals is not None)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from patching.errors import InputFileError, MeshError
+from patching.errors import NupatchError, InputFileError, MeshError
 
 __all__ = ["TRIANGLE_FORMATS", "read_triangles"]
 
@@ -66,7 +66,10 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, str
         raise InputFileError(f"cannot read file: {exc.strerror}", str(path)) from None
     if kind in ("obj", "off"):
         _refuse_polygons(path, kind, data.decode("utf-8", errors="replace"))
-    import trimesh
+    try:
+        import trimesh
+    except ImportError:
+        raise NupatchError("reading triangle meshes needs trimesh: pip install 'nupatch[fit]'", str(path)) from None
 
     try:
         loaded = trimesh.load(path, file_type=kind, force="mesh", process=False)

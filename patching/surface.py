@@ -49,6 +49,9 @@ class PatchGroup:
     faces: np.ndarray
     coefficients: np.ndarray
 
+    def __repr__(self) -> str:
+        return f"PatchGroup(degree {self.degree}, {len(self.faces)} patches)"
+
 
 @dataclass(frozen=True)
 class SidePieces:
@@ -190,6 +193,11 @@ class BezierSurface:
     @property
     def n_patches(self) -> int:
         return int(sum(len(g.faces) for g in self.groups))
+
+    def __repr__(self) -> str:
+        """Counts, not arrays: ``BezierSurface('cube', 24 patches: 24 of degree 5, size 3.46)``."""
+        degrees = ", ".join(f"{len(g.faces)} of degree {g.degree}" for g in self.groups)
+        return f"BezierSurface({self.name!r}, {self.n_patches} patches: {degrees}, size {self.size:.6g})"
 
     def patches(self):
         """Yield (row, degree, face, (d+1, d+1, 3) coefficients) for every patch in row order."""

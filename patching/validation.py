@@ -175,10 +175,11 @@ def used_size(points: np.ndarray, used: np.ndarray | None = None) -> float:
 
 
 def check_points(points: np.ndarray, used: np.ndarray | None = None, closed: bool = False, where: str = "mesh") -> None:
-    """MeshError for a degenerate net: the used points all on one line (a surface of no area),
-    or, when ``closed``, all on a plane (a closed surface enclosing no volume).  The
-    singular values of the centred points, relative to the largest, are compared with
-    DEGENERATE_RATIO."""
+    """MeshError for a degenerate net: the used points all on one line (a surface of no area).
+    The singular values of the centred points, relative to the largest, are compared with
+    DEGENERATE_RATIO.  A closed surface whose points lie on a plane is not refused here: it
+    encloses no volume, and the B-rep makes each such component a shell with a warning
+    (``export.brep``), judged on its own scale.  ``closed`` is kept for callers."""
     p = points if used is None else points[used]
     if len(p) < 3:  # no patch at all: build() names the cause (holes, zero intervals)
         return
@@ -187,8 +188,6 @@ def check_points(points: np.ndarray, used: np.ndarray | None = None, closed: boo
         return
     if sv[1] <= DEGENERATE_RATIO * sv[0]:
         raise MeshError("degenerate geometry: all control points lie on a line, the surface has no area", where)
-    if closed and (len(sv) < 3 or sv[2] <= DEGENERATE_RATIO * sv[0]):
-        raise MeshError("degenerate geometry: all control points of the closed surface lie on a plane, it encloses no volume", where)
 
 
 def finite_number(value: Any, argument: str, *, positive: bool = False, integer: bool = False) -> float:

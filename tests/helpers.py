@@ -8,13 +8,15 @@ import itertools
 
 import numpy as np
 from OCP.Bnd import Bnd_Box
+
+from export.ocp_compat import box_bounds
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
 from OCP.TopAbs import TopAbs_EDGE
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS
-from OCP.TopTools import TopTools_IndexedMapOfShape
+from export.ocp_compat import TopoDS
+from export.ocp_compat import TopTools_IndexedMapOfShape
 
 import patching
 from patching.bernstein import elevation_matrix_2d
@@ -490,7 +492,7 @@ def exact_box(shape) -> np.ndarray:
     """(2, 3) bounding box of the exact surfaces (not of poles, not enlarged by tolerances)."""
     box = Bnd_Box()
     BRepBndLib.AddOptimal_s(shape, box, False, False)
-    x0, y0, z0, x1, y1, z1 = box.Get()
+    x0, y0, z0, x1, y1, z1 = box_bounds(box)
     return np.array([[x0, y0, z0], [x1, y1, z1]])
 
 

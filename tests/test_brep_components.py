@@ -12,7 +12,7 @@ from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
 from OCP.TopAbs import TopAbs_SOLID
 from OCP.TopExp import TopExp
-from OCP.TopTools import TopTools_IndexedMapOfShape
+from export.ocp_compat import TopTools_IndexedMapOfShape
 
 import patching
 from export.brep import to_shape

@@ -10,8 +10,8 @@ import pytest
 from OCP.Geom import Geom_BSplineCurve
 from OCP.GeomConvert import GeomConvert_BSplineCurveToBezierCurve
 from OCP.gp import gp_Pnt
-from OCP.TColgp import TColgp_Array1OfPnt
-from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+from export.ocp_compat import TColgp_Array1OfPnt
+from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 import patching
 from patching.mesh.primitives import torus_grid

@@ -34,7 +34,7 @@ def _occ_edges(path):
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.TopAbs import TopAbs_EDGE
     from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
+    from export.ocp_compat import TopoDS
 
     from export import read_step
 

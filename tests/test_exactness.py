@@ -15,11 +15,11 @@ from OCP.BRep import BRep_Tool
 from OCP.Geom import Geom_BezierSurface, Geom_BSplineSurface
 from OCP.GeomConvert import GeomConvert_BSplineSurfaceToBezierSurface
 from OCP.gp import gp_Pnt
-from OCP.TColgp import TColgp_Array2OfPnt
-from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+from export.ocp_compat import TColgp_Array2OfPnt
+from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
-from OCP.TopoDS import TopoDS
+from export.ocp_compat import TopoDS
 
 import patching
 from export import read_step, to_step

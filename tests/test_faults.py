@@ -379,14 +379,21 @@ def test_a_far_stray_vertex_changes_neither_size_nor_tessellation():
     assert len(tessellate(stray).triangles) == len(tessellate(plain).triangles)
 
 
-def test_all_points_on_a_line_or_a_closed_plane_are_refused():
+def test_all_points_on_a_line_are_refused_a_closed_plane_is_a_shell():
+    """A net on a line has no area: refused.  A closed net on a plane encloses no volume: the
+    B-rep makes it a shell with a warning (each component judged on its own scale)."""
+    from export.brep import to_shape
+    from OCP.TopAbs import TopAbs_SHELL
+
     line = np.array([[t, 2 * t, 0.5 * t] for t in np.linspace(0, 1, 8)])
     plane = np.array([[x, y, 0.0] for x in (0.0, 1.0) for y in (0.0, 1.0) for _ in (0, 1)])
     plane[1::2, 0] += 0.25
     cube = _cube_mesh()
-    for points, what in ((line, "line"), (plane, "plane")):
-        with pytest.raises(MeshError, match=what):
-            patching.build(cube.with_positions(points))
+    with pytest.raises(MeshError, match="line"):
+        patching.build(cube.with_positions(line))
+    with pytest.warns(patching.NupatchWarning):
+        shape = to_shape(patching.build(cube.with_positions(plane)))
+    assert shape.ShapeType() == TopAbs_SHELL
 
 
 @pytest.mark.parametrize("sep", ["\u2028", "\u2029", "\x85", "\x0c", "\x1c", "\r", "\x0b"])

@@ -9,8 +9,8 @@ from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS
-from OCP.TopTools import TopTools_IndexedMapOfShape
+from export.ocp_compat import TopoDS
+from export.ocp_compat import TopTools_IndexedMapOfShape
 
 import patching
 from export.continuity import check_continuity

@@ -19,8 +19,8 @@ from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_VERTEX
 from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS
-from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
+from export.ocp_compat import TopoDS
+from export.ocp_compat import TopTools_IndexedDataMapOfShapeListOfShape
 
 from export.brep import BrepError, to_shape
 from export.continuity import check_continuity

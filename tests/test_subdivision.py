@@ -469,8 +469,8 @@ def _occ_refined_poles(grid, du, dv):
     of every knot interval with InsertUKnot / InsertVKnot."""
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array2OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from export.ocp_compat import TColgp_Array2OfPnt
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     m, n, _ = grid.shape
     poles = TColgp_Array2OfPnt(1, m, 1, n)
@@ -723,8 +723,8 @@ def _occ_refined_curve(points, d):
     """Poles of OCC's periodic cubic B-spline curve (docs/knots.md mapping) after midpoint insertion."""
     from OCP.Geom import Geom_BSplineCurve
     from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array1OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from export.ocp_compat import TColgp_Array1OfPnt
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     m = len(points)
     poles = TColgp_Array1OfPnt(1, m)
@@ -793,8 +793,8 @@ def test_nonuniform_open_grid_boundary_interpolates_corners_and_is_c0():
 def test_limit_points_and_tangents_equal_occ_nurbs_on_nonuniform_torus():
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt, gp_Vec
-    from OCP.TColgp import TColgp_Array2OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from export.ocp_compat import TColgp_Array2OfPnt
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     from patching.subdivision import limit_points, limit_tangents
 
@@ -1105,8 +1105,8 @@ def _occ_clamped(grid, du, dv):
     the zero intervals are the end knots' extra multiplicity."""
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array2OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from export.ocp_compat import TColgp_Array2OfPnt
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     def knots(d):
         values, mults = np.unique(np.concatenate([[0.0], np.cumsum(d)]), return_counts=True)

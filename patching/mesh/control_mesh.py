@@ -53,6 +53,14 @@ class ControlMesh:
     name: str = "mesh"
     locations: Mapping[tuple, str] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """Counts, not arrays: ``ControlMesh('cube', 8 vertices, 6 faces, 0 intervals, ...)``."""
+        return (
+            f"ControlMesh({self.name!r}, {self.n_vertices} vertices, {self.n_faces} faces, "
+            f"{len(self.intervals)} interval tags, {len(self.creases)} creases, {len(self.corners)} corners, "
+            f"{len(self.holes)} holes, interpolate_boundary={self.interpolate_boundary})"
+        )
+
     @property
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])

@@ -19,7 +19,7 @@ def mesh_summary(mesh: ControlMesh, topology: Topology | None = None) -> dict[st
     """A JSON-ready dict: ``name``, ``vertices``, ``faces``, ``face_sizes`` (size: count),
     ``edges``, ``extraordinary_points`` (count, by_valence), ``strips``, ``intervals``
     (distinct (first 20), min, max), ``sharp_edges``, ``semi_sharp_edges``, ``boundary_edges``,
-    ``closed``, ``interpolate_boundary``; for an all-quad mesh without semi-sharp tags also
+    ``closed``, ``interpolate_boundary``, ``holes``, ``corner_tags``; for an all-quad mesh without semi-sharp tags also
     ``sharp_features`` (corners, darts, sector vertices; meshes subdivided first are classified
     only after those steps, so they have none here)."""
     topo = topology or Topology(mesh)
@@ -41,6 +41,8 @@ def mesh_summary(mesh: ControlMesh, topology: Topology | None = None) -> dict[st
         "boundary_edges": int(np.count_nonzero(topo.edge_is_boundary)),
         "closed": bool(not topo.edge_is_boundary.any()),
         "interpolate_boundary": mesh.interpolate_boundary,
+        "holes": len(mesh.holes),
+        "corner_tags": len(mesh.corners),
     }
     if info["semi_sharp_edges"] == 0 and mesh.is_quad_mesh:
         feats = features(topo)

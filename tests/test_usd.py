@@ -1,0 +1,337 @@
+"""USD input (export/usd.py, docs/input.md): stages written here with usd-core's own API build the
+same surface, with the same sharp edges, as the equivalent tagged OBJ."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pxr = pytest.importorskip("pxr")
+from pxr import Gf, Sdf, Usd, UsdGeom  # noqa: E402
+
+import patching  # noqa: E402
+from export.usd import read_usd  # noqa: E402
+
+from .conftest import SHAPES  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SHAPE_DIR = Path(os.environ.get("NUPATCH_SHAPES", SHAPES))
+
+
+def shape(name: str) -> Path:
+    path = SHAPE_DIR / name
+    if not path.is_file():
+        pytest.skip(f"OpenSubdiv shape {name} not found")
+    return path
+
+
+def f32(x: float) -> float:
+    return float(np.float32(min(x, 10.0)))
+
+
+def float32_mesh(mesh: patching.ControlMesh) -> patching.ControlMesh:
+    """The mesh with its points and sharpnesses rounded as USD stores them (point3f, float;
+    sharpness 10 and above are all infinitely sharp)."""
+    from dataclasses import replace
+
+    return replace(
+        mesh.with_positions(mesh.vertices.astype(np.float32).astype(np.float64)),
+        creases={e: f32(s) for e, s in mesh.creases.items()},
+        intervals={e: f32(d) for e, d in mesh.intervals.items()},
+        corners={v: f32(s) for v, s in mesh.corners.items()},
+    )
+
+
+def write_stage(mesh: patching.ControlMesh, path: Path, *, prim="/root/part", chain_creases=False,
+                per_crease=False, intervals=True, xform=None, left_handed=False) -> Path:
+    """A stage with one Mesh prim holding ``mesh`` and its tags, written with pxr directly."""
+    stage = Usd.Stage.CreateNew(str(path))
+    parent = UsdGeom.Xform.Define(stage, prim.rsplit("/", 1)[0])
+    if xform is not None:
+        parent.AddTransformOp().Set(Gf.Matrix4d(*np.asarray(xform, dtype=float).ravel().tolist()))
+    m = UsdGeom.Mesh.Define(stage, prim)
+    m.CreatePointsAttr([Gf.Vec3f(*map(float, p)) for p in mesh.vertices])
+    faces = [list(map(int, mesh.face(f))) for f in range(mesh.n_faces)]
+    if left_handed:
+        faces = [[f[0]] + f[1:][::-1] for f in faces]
+        m.CreateOrientationAttr("leftHanded")
+    m.CreateFaceVertexCountsAttr([len(f) for f in faces])
+    m.CreateFaceVertexIndicesAttr([v for f in faces for v in f])
+    m.CreateInterpolateBoundaryAttr({0: "none", 1: "edgeAndCorner", 2: "edgeOnly"}[mesh.interpolate_boundary])
+    if mesh.creases:
+        items = sorted(mesh.creases.items())
+        if chain_creases:  # one crease run of 3 vertices where two tagged edges share a vertex
+            idx, lengths, sharp = [], [], []
+            for (a, b), s in items:
+                idx += [a, b]
+                lengths.append(2)
+                sharp.append(s)
+        else:
+            idx = [v for (a, b), _ in items for v in (a, b)]
+            lengths = [2] * len(items)
+            sharp = [s for _, s in items]
+        m.CreateCreaseIndicesAttr(idx)
+        m.CreateCreaseLengthsAttr(lengths)
+        m.CreateCreaseSharpnessesAttr([min(float(s), 10.0) for s in sharp])
+    if mesh.corners:
+        m.CreateCornerIndicesAttr(list(mesh.corners))
+        m.CreateCornerSharpnessesAttr([min(float(s), 10.0) for s in mesh.corners.values()])
+    if mesh.holes:
+        m.CreateHoleIndicesAttr(sorted(mesh.holes))
+    if intervals and mesh.intervals:
+        topo = patching.Topology(mesh)
+        values = []
+        for f in faces:
+            for i in range(len(f)):
+                values.append(float(topo.edge_interval[topo.edge_id(f[i], f[(i + 1) % len(f)])]))
+        kind = Sdf.ValueTypeNames.DoubleArray if intervals == "double" else Sdf.ValueTypeNames.FloatArray
+        pv = UsdGeom.PrimvarsAPI(m.GetPrim()).CreatePrimvar("nupatch:intervals", kind, UsdGeom.Tokens.faceVarying)
+        pv.Set(values)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def coefficients(surface) -> np.ndarray:
+    return np.concatenate([g.coefficients.reshape(-1, 3) for g in surface.groups])
+
+
+def assert_same_surface(a: patching.ControlMesh, b: patching.ControlMesh):
+    ta, tb = patching.Topology(a), patching.Topology(b)
+    np.testing.assert_array_equal(np.minimum(ta.edge_sharpness, 10), np.minimum(tb.edge_sharpness, 10))
+    np.testing.assert_array_equal(ta.edge_interval, tb.edge_interval)
+    sa, sb = patching.build(a), patching.build(b)
+    np.testing.assert_allclose(coefficients(sa), coefficients(sb), rtol=0, atol=1e-12 * sa.size)
+
+
+@pytest.mark.parametrize("name", ["catmark_cube_creases0.obj", "catmark_cube_corner2.obj", "catmark_hole_test1.obj", "catmark_edgeonly.obj"])
+def test_opensubdiv_shapes_as_usd_build_like_their_obj(tmp_path, name):
+    obj = patching.read_mesh(shape(name))
+    usd = read_usd(write_stage(obj, tmp_path / "s.usda"))
+    assert usd.n_faces == obj.n_faces and usd.interpolate_boundary == obj.interpolate_boundary
+    assert set(usd.holes) == set(obj.holes) and dict(usd.corners) == {v: f32(s) for v, s in obj.corners.items()}
+    assert_same_surface(usd, float32_mesh(obj))
+
+
+def test_tagged_bracket_with_intervals_primvar_builds_like_the_obj(tmp_path):
+    obj = patching.read_mesh(REPO / "models" / "l_bracket.obj")
+    for suffix in (".usda", ".usdc"):
+        usd = read_usd(write_stage(obj, tmp_path / f"b{suffix}"))
+        assert_same_surface(usd, float32_mesh(obj))
+    # a double-precision primvar keeps the intervals exactly
+    usd = read_usd(write_stage(obj, tmp_path / "d.usda", intervals="double"))
+    np.testing.assert_array_equal(patching.Topology(usd).edge_interval, patching.Topology(obj).edge_interval)
+
+
+def test_world_transform_and_left_handed_orientation(tmp_path):
+    obj = patching.read_mesh(shape("catmark_cube_creases0.obj"))
+    # row-vector convention: p_world = p M, translation in the last row
+    m = np.array([[0, 2, 0, 0], [-2, 0, 0, 0], [0, 0, 2, 0], [5, -1, 3, 1]], dtype=float)
+    usd = read_usd(write_stage(obj, tmp_path / "t.usda", xform=m, left_handed=True))
+    expected = float32_mesh(obj).vertices @ m[:3, :3] + m[3, :3]
+    np.testing.assert_allclose(usd.vertices, expected, atol=1e-12)
+    np.testing.assert_array_equal(usd.face_vertices, obj.face_vertices)  # leftHanded faces reversed back
+    mirrored = read_usd(write_stage(obj, tmp_path / "m.usda", xform=np.diag([-1.0, 1, 1, 1])))
+    # a mirroring transform reverses the faces so that the solid stays outward-oriented
+    assert patching.build(mirrored).n_patches == patching.build(obj).n_patches
+    np.testing.assert_array_equal(mirrored.face_vertices.reshape(-1, 4)[:, 0], obj.face_vertices.reshape(-1, 4)[:, 0])
+    np.testing.assert_array_equal(mirrored.face_vertices.reshape(-1, 4)[:, 1], obj.face_vertices.reshape(-1, 4)[:, 3])
+
+
+def test_two_mesh_prims_are_one_control_mesh(tmp_path):
+    obj = patching.read_mesh(shape("catmark_cube_creases0.obj"))
+    path = tmp_path / "two.usda"
+    write_stage(obj, path)
+    stage = Usd.Stage.Open(str(path))
+    second = UsdGeom.Mesh.Define(stage, "/other/cube")
+    second.CreatePointsAttr([Gf.Vec3f(*map(float, p + 10)) for p in obj.vertices])
+    second.CreateFaceVertexCountsAttr(obj.face_sizes.tolist())
+    second.CreateFaceVertexIndicesAttr(obj.face_vertices.tolist())
+    second.CreateInterpolateBoundaryAttr({0: "none", 1: "edgeAndCorner", 2: "edgeOnly"}[obj.interpolate_boundary])
+    stage.GetRootLayer().Save()
+    mesh = read_usd(path)
+    assert mesh.n_faces == 2 * obj.n_faces and mesh.n_vertices == 2 * obj.n_vertices
+    assert len(mesh.creases) == len(obj.creases)  # the second cube carries none
+
+
+BLENDER_LIKE = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Z"
+)
+def Xform "Cube"
+{
+    matrix4d xformOp:transform = ( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1) )
+    uniform token[] xformOpOrder = ["xformOp:transform"]
+    def Mesh "Cube"
+    {
+        int[] cornerIndices = [0]
+        float[] cornerSharpnesses = [10]
+        int[] creaseIndices = [0, 1, 3, 2, 0]
+        int[] creaseLengths = [5]
+        float[] creaseSharpnesses = [10]
+        int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]
+        int[] faceVertexIndices = [0, 4, 6, 2, 3, 2, 6, 7, 7, 6, 4, 5, 5, 1, 3, 7, 1, 0, 2, 3, 5, 4, 0, 1]
+        token interpolateBoundary = "edgeAndCorner"
+        point3f[] points = [(1, 1, 1), (1, 1, -1), (1, -1, 1), (1, -1, -1), (-1, 1, 1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1)]
+        uniform token subdivisionScheme = "catmullClark"
+    }
+}
+"""
+
+BLENDER_LIKE_OBJ = """v 1 1 1
+v 1 1 -1
+v 1 -1 1
+v 1 -1 -1
+v -1 1 1
+v -1 1 -1
+v -1 -1 1
+v -1 -1 -1
+f 1 5 7 3
+f 4 3 7 8
+f 8 7 5 6
+f 6 2 4 8
+f 2 1 3 4
+f 6 5 1 2
+t crease 2/1/0 0 1 10
+t crease 2/1/0 1 3 10
+t crease 2/1/0 3 2 10
+t crease 2/1/0 2 0 10
+t corner 1/1/0 0 10
+"""
+
+
+def test_a_crease_loop_written_as_one_run_like_blender_writes_it(tmp_path, capsys):
+    import export
+    from export.cli import main
+
+    path = tmp_path / "cube.usda"
+    path.write_text(BLENDER_LIKE)
+    obj_path = tmp_path / "cube.obj"
+    obj_path.write_text(BLENDER_LIKE_OBJ)
+    usd, obj = read_usd(path), patching.read_mesh(obj_path)
+    assert len(usd.creases) == 4 and usd.corners == {0: 10.0}
+    assert_same_surface(usd, obj)
+    # the B-reps have the same sharp edges: four, at the same places
+    sharp = []
+    for mesh in (usd, obj):
+        report = export.check_continuity(patching.build(mesh))
+        assert report.valid and report.n_sharp_edges == 4
+        sharp.append(sorted(tuple(np.round(e.position, 9)) for e in report.sharp_edges))
+    assert sharp[0] == sharp[1]
+    assert main(["info", str(path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["sharp_edges"] == 4 and info["corner_tags"] == 1 and info["holes"] == 0
+
+
+def test_info_reports_holes_and_corners_for_obj_and_usd(tmp_path, capsys):
+    from export.cli import main
+
+    obj_path = shape("catmark_hole_test1.obj")
+    obj = patching.read_mesh(obj_path)
+    usd_path = write_stage(obj, tmp_path / "h.usda")
+    infos = []
+    for src in (obj_path, usd_path):
+        assert main(["info", str(src), "--json"]) == 0
+        infos.append(json.loads(capsys.readouterr().out))
+    assert infos[0]["holes"] == infos[1]["holes"] == len(obj.holes) > 0
+    assert infos[0]["corner_tags"] == infos[1]["corner_tags"] == len(obj.corners)
+
+
+def _one_line_error(result, *needles):
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2, result.stderr
+    assert len(lines) == 1 and lines[0].startswith("nupatch: error: "), result.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+
+
+def _main(capsys, *args):
+    """``nupatch ARGS`` in this process (export.cli.main), as a CompletedProcess-like result."""
+    from types import SimpleNamespace
+
+    from export.cli import main
+
+    code = main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return SimpleNamespace(returncode=code, stdout=captured.out, stderr=captured.err)
+
+
+def _mesh_stage(path: Path, points, counts, indices, scheme=None):
+    stage = Usd.Stage.CreateNew(str(path))
+    m = UsdGeom.Mesh.Define(stage, "/world/bad")
+    m.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
+    m.CreateFaceVertexCountsAttr(counts)
+    m.CreateFaceVertexIndicesAttr(indices)
+    if scheme:
+        m.CreateSubdivisionSchemeAttr(scheme)
+    stage.GetRootLayer().Save()
+    return path
+
+
+SQUARE = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+
+
+def test_bad_usd_input_is_one_line_naming_the_prim(tmp_path, run_cli, capsys):
+    out = tmp_path / "out.step"
+    empty = tmp_path / "empty.usda"
+    stage = Usd.Stage.CreateNew(str(empty))
+    UsdGeom.Xform.Define(stage, "/world")
+    stage.GetRootLayer().Save()
+    _one_line_error(_main(capsys, "build", empty, "-o", out), "no UsdGeom.Mesh prim", "empty.usda")
+    # an edge shared by three faces
+    pts = SQUARE + [(1, 0, 1), (1, 1, 1), (1, 0, -1), (1, 1, -1)]
+    nonman = _mesh_stage(tmp_path / "nonman.usda", pts, [4, 4, 4], [0, 1, 2, 3, 1, 4, 5, 2, 2, 7, 6, 1])
+    _one_line_error(_main(capsys, "build", nonman, "-o", out), "non-manifold", "/world/bad")
+    nan = _mesh_stage(tmp_path / "nan.usda", [(0, 0, 0), (1, float("nan"), 0), (1, 1, 0), (0, 1, 0)], [4], [0, 1, 2, 3])
+    _one_line_error(_main(capsys, "build", nan, "-o", out), "not finite", "/world/bad")
+    loop = _mesh_stage(tmp_path / "loop.usda", SQUARE, [3, 3], [0, 1, 2, 0, 2, 3], scheme="loop")
+    _one_line_error(_main(capsys, "info", loop), "subdivisionScheme 'loop'", "/world/bad")
+    garbage = tmp_path / "garbage.usda"
+    garbage.write_text("#usda 1.0\ndef Mesh \"x\" { this is not usd\n")
+    _one_line_error(_main(capsys, "build", garbage, "-o", out), "not a USD stage", "garbage.usda")
+    # the two face-vertices of edge 1-2 give it different intervals
+    clash = _mesh_stage(tmp_path / "clash.usda", SQUARE + [(2, 0, 0), (2, 1, 0)], [4, 4], [0, 1, 2, 3, 1, 4, 5, 2])
+    stage = Usd.Stage.Open(str(clash))
+    UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/world/bad")).CreatePrimvar(
+        "nupatch:intervals", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.faceVarying).Set([1, 2, 1, 2, 3, 2, 3, 2.5])
+    stage.GetRootLayer().Save()
+    _one_line_error(_main(capsys, "build", clash, "-o", out), "edge 1-2 has two knot intervals, 2 and 2.5", "/world/bad")
+    # and once through a fresh `nupatch` process
+    _one_line_error(run_cli("build", loop, "-o", out), "subdivisionScheme 'loop'", "/world/bad")
+    assert not out.exists() and not list(tmp_path.glob("*.step*"))
+
+
+def test_usda_on_standard_input(tmp_path):
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    result = subprocess.run([sys.executable, "-m", "export", "info", "-", "--json"], input=BLENDER_LIKE, capture_output=True,
+                            text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["sharp_edges"] == 4
+
+
+def test_blender_exported_creased_cube(tmp_path):
+    bpy = pytest.importorskip("bpy")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_cube_add()
+    cube = bpy.context.active_object
+    edge = cube.data.edges[0]
+    if hasattr(edge, "crease"):
+        for e in cube.data.edges[:4]:
+            e.crease = 1.0
+    else:
+        attr = cube.data.attributes.new("crease_edge", "FLOAT", "EDGE")
+        for i in range(4):
+            attr.data[i].value = 1.0
+    cube.modifiers.new("subd", "SUBSURF")
+    path = tmp_path / "blender.usda"
+    bpy.ops.wm.usd_export(filepath=str(path), export_subdivision="BEST_MATCH")
+    mesh = read_usd(path)
+    assert mesh.n_faces == 6 and len(mesh.creases) == 4
+    assert patching.build(mesh).n_patches == 6
