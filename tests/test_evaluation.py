@@ -199,7 +199,9 @@ def test_maxima_that_only_sampling_makes_are_not_counted():
         values, _ = node_values(graph, column_values(ridge, [column], rows, samples))
         assert count_local_maxima(values[:, 0], graph.pairs) >= 3
         confirmed = _confirmed_maxima(ridge, graph, column, values[:, 0])
-        assert confirmed.size == 1 and confirmed[0] <= 1.0
+        # the true maximum is exactly 1 (at s = t = 1/2); the net comes out of two dense solves,
+        # so the value may exceed 1 by a few ulps (1 + 2.2e-16 measured with numpy 2.4's LAPACK)
+        assert confirmed.size == 1 and confirmed[0] <= 1.0 + 8 * np.finfo(float).eps
 
 
 def test_report_on_a_closed_mesh_with_adjacent_eps():
