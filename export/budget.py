@@ -72,10 +72,9 @@ def estimate_triangles(surface, tolerance: float) -> int:
     return int((4.0 * (n[:, 0] + 1) * (n[:, 1] + 1)).sum())
 
 
-def check_tessellation_budget(surface, tolerance: float, option: str = "--tolerance") -> int:
-    """Refuse (NupatchError naming ``option``) a tessellation estimated above MAX_TRIANGLES,
-    warn above WARN_TRIANGLES; returns the estimate.  Runs before BRepMesh is called."""
-    estimate = estimate_triangles(surface, tolerance)
+def _judge(estimate: int, tolerance: float, option: str) -> int:
+    """Refuse an estimate above MAX_TRIANGLES (naming ``option`` and the tolerance that fits),
+    warn above WARN_TRIANGLES; returns the estimate."""
     if estimate > MAX_TRIANGLES:
         # triangles scale as 1 / tolerance: the tolerance that fits, rounded up to 2 digits
         fits = float(f"{tolerance * estimate / MAX_TRIANGLES * 1.01:.2g}")
@@ -87,6 +86,13 @@ def check_tessellation_budget(surface, tolerance: float, option: str = "--tolera
     if estimate > WARN_TRIANGLES:
         warnings.warn(NupatchWarning(f"tolerance {tolerance:g} makes about {estimate:.3g} triangles (a large output)"))
     return estimate
+
+
+def check_tessellation_budget(surface, tolerance: float, option: str = "--tolerance") -> int:
+    """Refuse (NupatchError naming ``option``) a tessellation estimated above MAX_TRIANGLES,
+    warn above WARN_TRIANGLES; returns the estimate.  Runs before BRepMesh is called."""
+    estimate = estimate_triangles(surface, tolerance)
+    return _judge(estimate, tolerance, option)
 
 
 def warn_many_patches(mesh, surface) -> None:
@@ -144,13 +150,4 @@ def estimate_shape_triangles(shape, tolerance: float) -> int:
 def check_shape_budget(shape, tolerance: float, option: str = "--tolerance") -> int:
     """``check_tessellation_budget`` for an OpenCASCADE shape (``estimate_shape_triangles``)."""
     estimate = estimate_shape_triangles(shape, tolerance)
-    if estimate > MAX_TRIANGLES:
-        fits = float(f"{tolerance * estimate / MAX_TRIANGLES * 1.01:.2g}")
-        raise NupatchError(
-            f"tolerance {tolerance:g} would make about {estimate:.3g} triangles, more than the budget of "
-            f"{MAX_TRIANGLES:.3g} (docs/limits.md); use a tolerance of at least {fits:g}",
-            option,
-        )
-    if estimate > WARN_TRIANGLES:
-        warnings.warn(NupatchWarning(f"tolerance {tolerance:g} makes about {estimate:.3g} triangles (a large output)"))
-    return estimate
+    return _judge(estimate, tolerance, option)
