@@ -31,7 +31,7 @@ class BuildJob:
     mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
     deflection of tessellated formats (None: their default); options: the build's choices;
     pack: regular regions as multi-span B-spline faces (exact formats only); intervals: how
-    strips without interval tags get theirs (``patching.intervals``)."""
+    strips without interval tags get theirs (``patching.topology.intervals``)."""
 
     mesh: str
     out: str
