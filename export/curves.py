@@ -50,7 +50,7 @@ def to_geom_curve(spline: BSplineCurve | Curve):
     from export.ocp_compat import TColgp_Array1OfPnt
     from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
-    if isinstance(spline, Curve):
+    if not isinstance(spline, BSplineCurve):  # a Curve or a ModifiedQuinticCurve
         spline = spline.limit()
     poles = _xyz(spline.poles)
     values, mults = np.unique(spline.knots, return_counts=True)
