@@ -346,24 +346,33 @@ def _with_default_vectors(mesh, line: list[tuple[int, int]], s: float, scale: fl
     return vecs, W
 
 
+def _shape(shapes: Path, name: str, steps: int):
+    """An OpenSubdiv regression shape after ``steps`` Catmull-Clark steps, or None if absent."""
+    import warnings
+
+    from patching.mesh.obj import read_obj
+    from patching.subdivision.catmark import subdivide
+
+    src = shapes / name
+    if not src.exists():
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return subdivide(read_obj(src), steps, rules="opensubdiv")
+
+
 def figure_13(out: Path, shapes: Path) -> None:
     """[KSD] Fig. 13 in spirit: a cube with OpenSubdiv semi-sharp creases (catmark_cube_creases1)
     plus creases from control vectors along two grid lines (sharpness 2 and inf), with a
     Gaussian curvature plot."""
-    import warnings
-
     from patching.curves.surface_vectors import refine
-    from patching.mesh.obj import read_obj
     from patching.subdivision.catmark import subdivide
     from patching.topology.tables import Topology
 
-    src = shapes / "catmark_cube_creases1.obj"
-    if not src.exists():
+    mesh = _shape(shapes, "catmark_cube_creases1.obj", 2)
+    if mesh is None:
         print("skip figure_13: OpenSubdiv shapes absent")
         return
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        mesh = subdivide(read_obj(src), 2, rules="opensubdiv")
     topo = Topology(mesh)
     regular = [int(v) for v in np.flatnonzero(topo.valence == 4) if not np.isin(v, topo.edges[topo.edge_sharpness > 0]).any()]
     v = regular[len(regular) // 3]
@@ -399,20 +408,14 @@ def figure_13(out: Path, shapes: Path) -> None:
 def figure_14(out: Path, shapes: Path) -> None:
     """[KSD] Fig. 14 in spirit: a Catmull-Clark torus (catmark_torus; the paper's triple torus
     is not among our shapes) with creases from control vectors along two grid loops."""
-    import warnings
-
     from patching.curves.surface_vectors import refine
-    from patching.mesh.obj import read_obj
     from patching.subdivision.catmark import subdivide
     from patching.topology.tables import Topology
 
-    src = shapes / "catmark_torus.obj"
-    if not src.exists():
+    mesh = _shape(shapes, "catmark_torus.obj", 1)
+    if mesh is None:
         print("skip figure_14: OpenSubdiv shapes absent")
         return
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        mesh = subdivide(read_obj(src), 1, rules="opensubdiv")
     topo = Topology(mesh)
     ring = topo.one_ring(0)
     lines = _walk_line(mesh, 0, int(topo.dest[ring[0]]), 200)

@@ -58,7 +58,10 @@ def test_catmull_clark_with_vectors_is_the_tensor_product_of_the_curve_scheme(s)
     the Kronecker products of the cubic curve scheme's operators, to 1e-12, after 1 and 2 steps."""
     m, n = 9, 8
     mesh = torus_grid(m, n)
-    vid = lambda a, b: (a % m) * n + (b % n)  # noqa: E731
+
+    def vid(a, b):
+        return (a % m) * n + (b % n)
+
     vecs = [
         SurfaceVector(LINE, vid(3, 3), vid(4, 3), s),  # the u line through (3, 3): U
         SurfaceVector(LINE, vid(5, 2), vid(5, 3), s),  # the v line through (5, 2): V
@@ -175,6 +178,8 @@ def test_subdivide_honours_control_vector_tags(run_cli, tmp_path):
     assert r.returncode == 0, r.stderr
     text = out.read_text()
     vecs, W = parse_vector_tags(text, "o.obj")
+    assert np.allclose(np.sort(W[:, 2]), 0.5 * np.array([1 / 16, 1 / 16, 1 / 4, 1 / 4, 3 / 8]))  # the children 1/2 A_u e_i
+    assert np.abs(W[:, :2]).max() == 0
     assert len(vecs) == 5 and all(v.sharpness == 1.0 for v in vecs)
     A, C, _, _, _ = operators(mesh, [SurfaceVector(LINE, 14, 20, 2.0)], 1)
     import warnings

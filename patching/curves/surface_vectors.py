@@ -155,8 +155,13 @@ def vector_step(
     regular_child = _regular_vertices(child_topo, child)
     b = uniform_mask(3)  # [1, 4, 6, 4, 1] / 8: vertex 6/8, edge 4/8, next vertex 1/8
     m = float(crease_function(3).mask[0])  # 6/8
-    vp = lambda u: nf + ne + u  # noqa: E731  (vertex point of u)
-    ep = lambda e: nf + e  # noqa: E731
+
+    def vp(u: int) -> int:  # the vertex point of vertex u
+        return nf + ne + u
+
+    def ep(e: int) -> int:  # the edge point of edge e
+        return nf + e
+
     rows, cols, vals = [], [], []
     hkeys: dict[tuple, int] = {}
     hrows, hcols, hvals = [], [], []
