@@ -182,10 +182,13 @@ def _has_control_vectors(source) -> bool:
     path = Path(str(source))
     if str(source) == "-" or path.suffix.lower() != ".obj" or not path.is_file():
         return False
+    import re
+
     try:
-        return "controlvector" in path.read_text(encoding="utf-8-sig", errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
     except OSError:
         return False
+    return re.search(r"^\s*t\s+controlvector\s", text, re.MULTILINE) is not None
 
 
 def cmd_subdivide(args: argparse.Namespace) -> int:
@@ -221,6 +224,8 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
 
         from export.curves import subdivide_with_vectors
 
+        if args.crease_method != "uniform" or args.eigen_angles != "standard":
+            raise NupatchError("control vectors take the default --crease-method and --eigen-angles", args.mesh)
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="unknown tag 'controlvector'")
             mesh = read_control_mesh(mesh_path, args.intervals)

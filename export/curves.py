@@ -202,5 +202,11 @@ def subdivide_with_vectors(mesh, mesh_path: str | os.PathLike, steps: int, rules
         return None
     if not np.all(Topology(mesh).edge_interval == 1.0):
         raise UnsupportedError("control vectors need uniform knot intervals ([KSD] sec. 5 is uniform)", path.name)
+    from patching.subdivision.catmark import MAX_SUBDIVIDE_FACES
+
+    faces = int(mesh.face_sizes.sum()) * 4 ** (steps - 1) if steps else mesh.n_faces
+    if faces > MAX_SUBDIVIDE_FACES:
+        raise UnsupportedError(f"{steps} steps of {mesh.n_faces} faces make {faces:.3g} faces, more than "
+                               f"{MAX_SUBDIVIDE_FACES:,}: take fewer steps", path.name)
     refined, kept, kept_values = refine(mesh, vectors, values, steps, rules=rules)
     return format_obj(refined, comment) + format_vector_tags(kept, kept_values) + rules_tag(rules) + "\n"
