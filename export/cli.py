@@ -227,7 +227,7 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
         if args.crease_method != "uniform" or args.eigen_angles != "standard":
             raise NupatchError("control vectors take the default --crease-method and --eigen-angles", args.mesh)
         with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="unknown tag 'controlvector'")
+            warnings.filterwarnings("ignore", message="control vector ignored")
             mesh = read_control_mesh(mesh_path, args.intervals)
         text = subdivide_with_vectors(mesh, mesh_path, args.steps, args.rules, comment)
         atomic_write_text(out, text)
