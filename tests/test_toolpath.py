@@ -21,6 +21,7 @@ from patching.mesh.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
 from patching.toolpath.geometry import common_nets
 from patching.toolpath.path import side_normals, up_faces
+from patching.toolpath.segmentation import cut_weight, dual_edges, spanning_tree
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"
@@ -191,15 +192,17 @@ def test_segments_cross_detects_a_crossing():
 
 
 # -- segmentation ----------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["clamped_grid", "l_bracket", "square_frame", "machined_bracket"])
-def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
+@pytest.mark.parametrize("name", ["clamped_grid", "l_bracket", "square_frame", "machined_bracket", "torus_nonuniform"])
+@pytest.mark.parametrize("method", ["tree", "greedy", "best"])
+def test_segmentation_covers_up_faces_once_with_one_parametrisation(name, method):
     """Every up-facing face in exactly one piece; the cells of a piece meet pointwise along
     their shared sides; no piece spans a sharp edge (the features' crease tags)."""
     mesh = patching.read_mesh(MODELS / f"{name}.obj")
     surface = patching.build(mesh)
     faces, nets, _ = common_nets(surface)
     up = up_faces(faces, nets)
-    pieces = segment(mesh, faces[up], side_normals(mesh, faces, nets))
+    up &= mesh.face_sizes[faces] == 4
+    pieces = segment(mesh, faces[up], side_normals(mesh, faces, nets), method=method)
     covered = np.concatenate([p.faces.ravel() for p in pieces])
     assert np.array_equal(np.sort(covered), np.sort(faces[up]))  # every face in exactly one piece
     coeff = {int(f): c for g in surface.groups for f, c in zip(g.faces, g.coefficients)}
@@ -234,6 +237,45 @@ def test_segmentation_covers_up_faces_once_with_one_parametrisation(name):
         assert sharp.any()
     if name == "clamped_grid":
         assert len(pieces) == 1 and pieces[0].shape in ((6, 4), (4, 6))
+
+
+def kruskal_weight(n: int, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, int]:
+    """Textbook Kruskal with a union-find: (total weight, edge count) of a minimum spanning forest."""
+    parent = list(range(n))
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    total, count = 0.0, 0
+    for k in np.argsort(w, kind="stable"):
+        ra, rb = find(int(a[k])), find(int(b[k]))
+        if ra != rb:
+            parent[ra] = rb
+            total += float(w[k])
+            count += 1
+    return total, count
+
+
+@pytest.mark.parametrize("name", ["l_bracket", "square_frame"])
+def test_segmentation_tree_is_a_minimum_spanning_tree_and_best_cuts_least(name):
+    """The tree the segmentation starts from is a minimum spanning forest of the dual graph
+    (its weight and size equal a textbook Kruskal's), and the kept segmentation's total cut
+    weight is no higher than either method's (the plain greedy's included)."""
+    mesh = patching.read_mesh(MODELS / f"{name}.obj")
+    surface = patching.build(mesh)
+    faces, nets, _ = common_nets(surface)
+    up = up_faces(faces, nets) & (mesh.face_sizes[faces] == 4)
+    normals = side_normals(mesh, faces, nets)
+    f, kf, g, kg, w = dual_edges(mesh, faces[up], normals)
+    chosen = spanning_tree(mesh.n_faces, f, g, w)
+    total, count = kruskal_weight(mesh.n_faces, f, g, w)
+    assert chosen.sum() == count and w[chosen].sum() == pytest.approx(total, rel=1e-12)
+    costs = {m: cut_weight(segment(mesh, faces[up], normals, method=m), f, kf, g, w) for m in ("tree", "greedy", "best")}
+    assert costs["best"] <= min(costs["tree"], costs["greedy"]) + 1e-9
+    assert costs["best"] > 0  # these models need cuts
 
 
 # -- whole command, independent check --------------------------------------------------------
