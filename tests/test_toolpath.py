@@ -92,10 +92,13 @@ def bump_grid() -> patching.ControlMesh:
     return g.with_positions(v)
 
 
-def check_program(mesh_path: Path, out: Path, radius: float, scallop: float, tolerance: float, report: dict):
-    """The independent check of the acceptance list on a written program."""
-    mesh = patching.read_mesh(mesh_path)
-    surface = patching.build(mesh)
+def check_program(mesh_path, out: Path, radius: float, scallop: float, tolerance: float, report: dict):
+    """The independent check of the acceptance list on a written program.  mesh_path: the
+    control mesh (sampled by ``sample_surface``), or (points, unit normals) sampled elsewhere."""
+    if isinstance(mesh_path, tuple):
+        pts, nrm = mesh_path
+    else:
+        _, pts, nrm = sample_surface(patching.build(patching.read_mesh(mesh_path)), 41)
     text = out.read_text()
     assert "G21" in text and "G90" in text and f"radius {radius:g}" in text
     moves = parse_gcode(text)
@@ -115,7 +118,6 @@ def check_program(mesh_path: Path, out: Path, radius: float, scallop: float, tol
     runs = [r for r in runs if len(r)]
     assert len(runs) == pieces
     # Dense samples of the surface (independent evaluator), KD-tree.
-    _, pts, nrm = sample_surface(surface, 41)
     pts, nrm = pts.reshape(-1, 3), nrm.reshape(-1, 3)
     tree = cKDTree(pts)
     centres = []
@@ -342,11 +344,14 @@ def test_python_api_spiral_enters_and_leaves_at_boundary_and_is_simple():
         ["--tool", "ball:0.5", "--scallop", "0.01", "--feed", "-5"],
     ],
 )
-def test_bad_parameters_exit_2_one_line_no_file(extra, bump_obj, tmp_path, run_cli):
+def test_bad_parameters_exit_2_one_line_no_file(extra, bump_obj, tmp_path, capsys):
+    from export.cli import main
+
     out = tmp_path / "x.nc"
-    res = run_cli("toolpath", bump_obj, "-o", out, *extra)
-    assert res.returncode == 2, res.stderr
-    lines = res.stderr.strip().splitlines()
+    code = main(["toolpath", str(bump_obj), "-o", str(out), *extra])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("nupatch: error:")
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
@@ -374,3 +379,88 @@ def test_bad_output_suffix(bump_obj, tmp_path, run_cli):
     res = run_cli("toolpath", bump_obj, "-o", tmp_path / "x.txt", "--tool", "ball:0.5", "--scallop", "0.02")
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+# -- torus, STEP input -----------------------------------------------------------------------
+def test_closed_torus_program_checks(tmp_path, run_cli):
+    """A closed torus control mesh (non-uniform knots, one zero strip) through the whole
+    command: the up-facing half machined without gouge within H + T."""
+    src = MODELS / "torus_nonuniform.obj"
+    out = tmp_path / "torus.nc"
+    r, h = 0.5, 0.05
+    res = run_cli("toolpath", src, "-o", out, "--tool", f"ball:{r}", "--scallop", h, "--json")
+    assert res.returncode == 0, res.stderr
+    import json
+
+    report = json.loads(res.stdout)
+    check_program(src, out, r, h, report["tolerance"], report)
+
+
+def occ_samples(step: Path, n: int = 41) -> tuple[np.ndarray, np.ndarray]:
+    """Points and outward unit normals on an n x n grid of every face of a STEP file, by
+    OpenCASCADE's own surfaces (``Geom_Surface.D1``; REVERSED faces flipped)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepTools import BRepTools
+    from OCP.gp import gp_Pnt, gp_Vec
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+
+    from export.ocp_compat import TopoDS
+
+    pts, nrm = [], []
+    explorer = TopExp_Explorer(export.read_step(step), TopAbs_FACE)
+    while explorer.More():
+        face = TopoDS.Face_s(explorer.Current())
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        surf = BRep_Tool.Surface_s(face)
+        sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
+        for u in np.linspace(u0, u1, n):
+            for v in np.linspace(v0, v1, n):
+                p, du, dv = gp_Pnt(), gp_Vec(), gp_Vec()
+                surf.D1(u, v, p, du, dv)
+                c = np.cross([du.X(), du.Y(), du.Z()], [dv.X(), dv.Y(), dv.Z()]) * sign
+                pts.append([p.X(), p.Y(), p.Z()])
+                nrm.append(c / max(np.linalg.norm(c), 1e-300))
+        explorer.Next()
+    return np.array(pts), np.array(nrm)
+
+
+def test_step_input_program_checks(bump_obj, tmp_path, capsys):
+    """``toolpath PART.step``: the bump exported as STEP (one B-spline face per patch), read
+    back through OpenCASCADE, its faces welded into one rectangle of patches (one piece, as
+    from the mesh), and the program checked against OpenCASCADE's own samples of the file."""
+    step = tmp_path / "bump.step"
+    export.to_step(patching.build(patching.read_mesh(bump_obj)), step)
+    out = tmp_path / "bump.nc"
+    r, h = 0.5, 0.03
+    from export.cli import main
+
+    code = main(["toolpath", str(step), "-o", str(out), "--tool", f"ball:{r}", "--scallop", str(h), "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    import json
+
+    report = json.loads(captured.out)
+    assert report["pieces"] == 1
+    check_program(occ_samples(step, 25), out, r, h, report["tolerance"], report)
+
+
+def test_step_trimmed_or_rational_faces_refused(tmp_path, capsys):
+    """A triangular plane face (trimmed) and a cylinder (rational faces): one line naming the
+    face, exit 2, no file."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Pnt
+
+    poly = BRepBuilderAPI_MakePolygon(gp_Pnt(0, 0, 0), gp_Pnt(4, 0, 0), gp_Pnt(0, 4, 0), True)
+    export.write_step(BRepBuilderAPI_MakeFace(poly.Wire(), True).Face(), tmp_path / "tri.step", "tri")
+    export.write_step(BRepPrimAPI_MakeCylinder(2.0, 3.0).Shape(), tmp_path / "cyl.step", "cyl")
+    for name, word in (("tri", "trimmed"), ("cyl", "rational")):
+        out = tmp_path / f"{name}.nc"
+        from export.cli import main
+
+        code = main(["toolpath", str(tmp_path / f"{name}.step"), "-o", str(out), "--tool", "ball:0.5", "--scallop", "0.02"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2, err
+        assert len(err) == 1 and err[0].startswith("nupatch: error:") and word in err[0] and "face" in err[0], err
+        assert not out.exists()

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from ..bernstein import bernstein, elevation_matrix_2d
 from ..surface import BezierSurface
 
-__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points"]
+__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points", "group_nets", "unit_normals"]
 
 CHUNK = 8192
 
@@ -24,9 +24,14 @@ CHUNK = 8192
 def common_nets(surface: BezierSurface) -> tuple[np.ndarray, np.ndarray, int]:
     """All patches at one degree d (the largest): (faces (p,), nets (p, d+1, d+1, 3), d),
     rows in ``BezierSurface.patches`` order."""
-    d = max(g.degree for g in surface.groups)
+    return group_nets(surface.groups)
+
+
+def group_nets(groups) -> tuple[np.ndarray, np.ndarray, int]:
+    """``common_nets`` of a sequence of ``PatchGroup`` (exact Bernstein degree elevation)."""
+    d = max(g.degree for g in groups)
     faces, nets = [], []
-    for g in surface.groups:
+    for g in groups:
         c = np.asarray(g.coefficients, dtype=np.float64)
         if g.degree != d:
             e = elevation_matrix_2d(g.degree, d)
