@@ -375,9 +375,11 @@ def test_nothing_facing_up_and_nan_mesh(tmp_path, run_cli):
         assert not out.exists() and not (tmp_path / "p.png").exists()
 
 
-def test_bad_output_suffix(bump_obj, tmp_path, run_cli):
-    res = run_cli("toolpath", bump_obj, "-o", tmp_path / "x.txt", "--tool", "ball:0.5", "--scallop", "0.02")
-    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+def test_bad_output_suffix(bump_obj, tmp_path, capsys):
+    from export.cli import main
+
+    code = main(["toolpath", str(bump_obj), "-o", str(tmp_path / "x.txt"), "--tool", "ball:0.5", "--scallop", "0.02"])
+    assert code == 2 and len(capsys.readouterr().err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
 
 
