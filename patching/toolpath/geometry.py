@@ -81,8 +81,8 @@ def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int =
         ws, wt = np.stack([bs, dbs, bs], 1), np.stack([bt, bt, dbt], 1)
     else:
         ws, wt = bs[:, None], bt[:, None]
-    w = (ws[:, :, :, None] * wt[:, :, None, :]).reshape(len(bs), ws.shape[1], -1)
-    out = np.matmul(w, nets.reshape(len(bs), -1, 3))
+    w = (ws[:, :, :, None] * wt[:, :, None, :]).reshape(len(bs), ws.shape[1], (d + 1) ** 2)
+    out = np.matmul(w, nets.reshape(len(bs), (d + 1) ** 2, 3))
     return tuple(out[:, k] for k in range(out.shape[1]))
 
 
