@@ -16,12 +16,12 @@ from scipy.spatial import cKDTree
 import export
 import patching
 from patching.evaluation import evaluate_nets, sample_surface
-from patching.topology.features import sharp_edges
 from patching.mesh.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
 from patching.toolpath.geometry import common_nets
 from patching.toolpath.path import side_normals, up_faces
 from patching.toolpath.segmentation import cut_weight, dual_edges, spanning_tree
+from patching.topology.features import sharp_edges
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"
@@ -271,7 +271,7 @@ def test_segmentation_tree_is_a_minimum_spanning_tree_and_best_cuts_least(name):
     faces, nets, _ = common_nets(surface)
     up = up_faces(faces, nets) & (mesh.face_sizes[faces] == 4)
     normals = side_normals(mesh, faces, nets)
-    f, kf, g, kg, w = dual_edges(mesh, faces[up], normals)
+    f, kf, g, _, w = dual_edges(mesh, faces[up], normals)
     chosen = spanning_tree(mesh.n_faces, f, g, w)
     total, count = kruskal_weight(mesh.n_faces, f, g, w)
     assert chosen.sum() == count and w[chosen].sum() == pytest.approx(total, rel=1e-12)
@@ -384,17 +384,20 @@ def test_bad_output_suffix(bump_obj, tmp_path, capsys):
 
 
 # -- torus, STEP input -----------------------------------------------------------------------
-def test_closed_torus_program_checks(tmp_path, run_cli):
+def test_closed_torus_program_checks(tmp_path, capsys):
     """A closed torus control mesh (non-uniform knots, one zero strip) through the whole
-    command: the up-facing half machined without gouge within H + T."""
+    command (in-process): the up-facing half machined without gouge within H + T."""
+    from export.cli import main
+
     src = MODELS / "torus_nonuniform.obj"
     out = tmp_path / "torus.nc"
     r, h = 0.5, 0.05
-    res = run_cli("toolpath", src, "-o", out, "--tool", f"ball:{r}", "--scallop", h, "--json")
-    assert res.returncode == 0, res.stderr
+    code = main(["toolpath", str(src), "-o", str(out), "--tool", f"ball:{r}", "--scallop", str(h), "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
     import json
 
-    report = json.loads(res.stdout)
+    report = json.loads(captured.out)
     check_program(src, out, r, h, report["tolerance"], report)
 
 

@@ -53,9 +53,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
 
-from ..topology.features import sharp_edges
 from ..mesh import ControlMesh
 from ..topology import Topology
+from ..topology.features import sharp_edges
 
 __all__ = ["DIRECTIONS", "METHODS", "Piece", "cut_weight", "dual_edges", "segment", "spanning_tree"]
 
