@@ -348,9 +348,10 @@ def tool_path(
 
 def _refine_dense(chunks: list, maps: list, index: SurfaceIndex, radius: float, tolerance: float, step: float, rounds: int = 6) -> None:
     """Where a segment of the dense lifted spiral next to a lifted centre comes closer than
-    R - T / 2 to the surface (the drop-cutter's lift peaks between two samples), insert the lifted centre of the
-    contact midway in parameters, until none does (in place; chunks: [k, uv, p, n, c0, c]).
-    The chord error is then measured against a dense path that itself does not gouge."""
+    R - T / 2 to the surface (the drop-cutter's lift peaks between two samples), insert the
+    lifted centre of the contact midway in parameters, until none does or ``rounds`` passed
+    (in place; chunks: [k, uv, p, n, c0, c]).  The chord error is measured against this
+    dense path, so it should not dip into the surface where the programmed path may not."""
     for _ in range(rounds):
         lengths = [len(ch[5]) for ch in chunks]
         pid = np.repeat(np.arange(len(chunks)), lengths)
