@@ -30,6 +30,7 @@ CASES = [
     ("l_bracket", 0.25, 0.005),
     ("machined_bracket", 0.5, 0.02),
     ("square_frame", 0.5, 0.02),
+    ("torus_nonuniform", 0.5, 0.02),
 ]
 
 

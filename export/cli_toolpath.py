@@ -1,6 +1,7 @@
-"""``nupatch toolpath MESH -o OUT.nc --tool ball:R --scallop H [--tolerance T] [--feed F]
+"""``nupatch toolpath MESH|STEP -o OUT.nc --tool ball:R --scallop H [--tolerance T] [--feed F]
 [--picture P.png] [--json]``: 3-axis ball-end G-code over the up-facing surface
-([FSLYJ] sec. 4.3; ``patching.toolpath``, ``export.gcode``)."""
+([FSLYJ] sec. 4.3; ``patching.toolpath``, ``export.gcode``; STEP input through
+``export.toolpath_step``)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import math
 import time
 from pathlib import Path
 
-from patching.errors import NupatchError, UnsupportedError
+from patching.errors import NupatchError
 
 __all__ = ["add_parser", "parse_tool", "run"]
 
@@ -33,7 +34,7 @@ def parse_tool(text: str) -> float:
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("toolpath", help="3-axis ball-end CNC tool path (G-code) over the up-facing surface")
-    p.add_argument("mesh", metavar="MESH", help="control mesh (OBJ)")
+    p.add_argument("mesh", metavar="MESH|STEP", help="control mesh (OBJ), or a STEP file of untrimmed polynomial B-spline faces")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="G-code file (.nc or .gcode)")
     p.add_argument("--tool", required=True, metavar="ball:R", help="ball-end mill of radius R (mm)")
     p.add_argument("--scallop", required=True, type=float, metavar="H", help="largest scallop height (mm), 0 < H < R")
@@ -52,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from patching.toolpath import check_parameters, tool_path
 
     from .gcode import SUFFIXES, machining_figures, safe_height, write_gcode
+    from .toolpath_step import is_step, read_step_patches
 
     source, out = Path(args.mesh), Path(args.output)
     radius = parse_tool(args.tool)
@@ -66,14 +68,15 @@ def run(args: argparse.Namespace) -> int:
     for target in (out, picture):
         if target is not None and target.exists() and target.resolve() == source.resolve():
             raise NupatchError("the output would overwrite the input", str(target))
-    if source.suffix.lower() in (".step", ".stp"):
-        raise UnsupportedError("toolpath reads control meshes (OBJ); STEP input is not supported yet", str(source))
     check_output_path(out)
     if picture is not None:
         check_output_path(picture)
     start = time.perf_counter()
-    mesh = patching.read_mesh(source)
-    surface = patching.build(mesh)
+    if is_step(source):
+        surface, mesh = read_step_patches(source)
+    else:
+        mesh = patching.read_mesh(source)
+        surface = patching.build(mesh)
     path = tool_path(surface, mesh, radius, float(args.scallop), tolerance)
     top = float(max(np.max(g.coefficients[..., 2]) for g in surface.groups))
     write_gcode(path, out, args.feed, top, surface.name)

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from ..bernstein import bernstein, elevation_matrix_2d
 from ..surface import BezierSurface
 
-__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points"]
+__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points", "group_nets", "unit_normals"]
 
 CHUNK = 8192
 
@@ -24,9 +24,14 @@ CHUNK = 8192
 def common_nets(surface: BezierSurface) -> tuple[np.ndarray, np.ndarray, int]:
     """All patches at one degree d (the largest): (faces (p,), nets (p, d+1, d+1, 3), d),
     rows in ``BezierSurface.patches`` order."""
-    d = max(g.degree for g in surface.groups)
+    return group_nets(surface.groups)
+
+
+def group_nets(groups) -> tuple[np.ndarray, np.ndarray, int]:
+    """``common_nets`` of a sequence of ``PatchGroup`` (exact Bernstein degree elevation)."""
+    d = max(g.degree for g in groups)
     faces, nets = [], []
-    for g in surface.groups:
+    for g in groups:
         c = np.asarray(g.coefficients, dtype=np.float64)
         if g.degree != d:
             e = elevation_matrix_2d(g.degree, d)
@@ -63,24 +68,22 @@ def _bernstein(d: int, x: np.ndarray) -> np.ndarray:
 
 def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int = 1) -> tuple[np.ndarray, ...]:
     """Point, first (and with order=2 second) derivatives of net k at (s_k, t_k), one net per
-    point: nets (N, d+1, d+1, 3), s, t (N,).  Returns (S, S_s, S_t[, S_ss, S_st, S_tt]), (N, 3) each."""
+    point: nets (N, d+1, d+1, 3), s, t (N,).  Returns (S, S_s, S_t[, S_ss, S_st, S_tt]), (N, 3) each.
+
+    One batched product: the tensor-product weights B_i(s) B_j(t) (and their derivatives) of
+    every point, (N, q, (d+1)^2), times its net, (N, (d+1)^2, 3)."""
     d = nets.shape[1] - 1
     bs, dbs, ddbs = basis(d, s)
     bt, dbt, ddbt = basis(d, t)
-
-    def along_t(b):  # sum_j b[n, j] nets[n, i, j, c] -> (N, d+1, 3)
-        return (nets * b[:, None, :, None]).sum(axis=2)
-
-    def along_s(b, rows):  # sum_i b[n, i] rows[n, i, c] -> (N, 3)
-        return (rows * b[:, :, None]).sum(axis=1)
-
-    r0 = along_t(bt)
-    r1 = along_t(dbt)
-    out = [along_s(bs, r0), along_s(dbs, r0), along_s(bs, r1)]
     if order >= 2:
-        r2 = along_t(ddbt)
-        out += [along_s(ddbs, r0), along_s(dbs, r1), along_s(bs, r2)]
-    return tuple(out)
+        ws, wt = np.stack([bs, dbs, bs, ddbs, dbs, bs], 1), np.stack([bt, bt, dbt, bt, dbt, ddbt], 1)
+    elif order == 1:
+        ws, wt = np.stack([bs, dbs, bs], 1), np.stack([bt, bt, dbt], 1)
+    else:
+        ws, wt = bs[:, None], bt[:, None]
+    w = (ws[:, :, :, None] * wt[:, :, None, :]).reshape(len(bs), ws.shape[1], (d + 1) ** 2)
+    out = np.matmul(w, nets.reshape(len(bs), (d + 1) ** 2, 3))
+    return tuple(out[:, k] for k in range(out.shape[1]))
 
 
 def unit_normals(su: np.ndarray, sv: np.ndarray) -> np.ndarray:
@@ -194,11 +197,7 @@ class SurfaceIndex:
             if pairs.size:
                 owner, idx, dxy = pairs["i"], pairs["j"], pairs["v"]
                 need = pts[idx, 2] + np.sqrt(np.maximum(radius * radius - dxy * dxy, 0.0))
-                order = np.argsort(owner, kind="stable")
-                owner, need = owner[order], need[order]
-                first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
-                top = np.maximum.reduceat(need, first)
-                cc[owner[first], 2] = np.maximum(cc[owner[first], 2], top)
+                np.maximum.at(cc[:, 2], owner, need)
         active = np.arange(len(c))
         for _ in range(rounds):
             d, p, _ = self.closest(c[active])

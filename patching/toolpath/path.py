@@ -138,10 +138,13 @@ def _densities(pm: _PieceMap, radius: float, scallop: float):
     return ui + us, gu.max(axis=1), vj + vs, gv.max(axis=0), float(w.min())
 
 
-def _resample(pm: _PieceMap, uv: np.ndarray, step: float) -> np.ndarray:
-    """Insert parameter points so that consecutive surface points are <= step apart."""
-    p = pm.evaluate(uv, order=0)[0]
-    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+def _resample(pm: _PieceMap, uv: np.ndarray, step: float, radius: float) -> np.ndarray:
+    """Insert parameter points so that consecutive ball centres S + R n (and surface points)
+    are about <= step apart: around a convex rim of radius rho the centres move (rho + R) / rho
+    times as fast as the contacts, so spacing the contacts alone leaves long chords there."""
+    p, su, sv = pm.evaluate(uv)
+    c = p + radius * unit_normals(su, sv)
+    seg = np.maximum(np.linalg.norm(np.diff(p, axis=0), axis=1), np.linalg.norm(np.diff(c, axis=0), axis=1))
     extra = np.maximum(np.ceil(seg / step).astype(int), 1)
     frac = np.concatenate([np.arange(k) / k for k in extra])
     start = np.repeat(np.arange(len(seg)), extra)
@@ -242,17 +245,21 @@ def tool_path(
     index = SurfaceIndex(nets, spacing=max(radius / 8.0, surface.size / 1500.0))
     step = np.sqrt(2.0 * radius * tolerance)  # dense spiral sampling: sagitta of a step <= R T kappa / 4
 
-    chunks = []
+    chunks, maps = [], []
     for k, piece in enumerate(pieces):
         pm = _PieceMap(piece, nets_of_face)
         ug, du, vg, dv, _ = _densities(pm, radius, scallop)
         uv = fermat_spiral(ug, du, vg, dv)
-        uv = _resample(pm, uv, step)
+        uv = _resample(pm, uv, step, radius)
         p, su, sv = pm.evaluate(uv)
         n = unit_normals(su, sv)
-        c = p + radius * n
-        lifted = index.drop(c, radius, rounds=40)
-        chunks.append((k, uv, p, n, c, lifted))
+        chunks.append([k, uv, p, n, p + radius * n])
+        maps.append(pm)
+    # One drop-cutter call for the centres of all pieces.
+    c0 = np.concatenate([ch[4] for ch in chunks])
+    lifted = np.split(index.drop(c0, radius, rounds=40), np.cumsum([len(ch[4]) for ch in chunks])[:-1])
+    chunks = [[*ch, up] for ch, up in zip(chunks, lifted)]
+    _refine_dense(chunks, maps, index, radius, tolerance, step)
 
     # Machine pieces in a greedy nearest order; each may run backwards.
     order, flip = [], []
@@ -272,8 +279,8 @@ def tool_path(
         left.remove(k)
         at = (chunks[k][5][0] if rev else chunks[k][5][-1])[:2]
 
-    piece_ids, centres, contacts, normals, params = [], [], [], [], []
-    max_chord, min_clear, lifted_count, dense_count = 0.0, np.inf, 0, 0
+    polys, contacts, normals, params, piece_ids, dense = [], [], [], [], [], []
+    lifted_count, dense_count = 0, 0
     check_step = np.sqrt(2.0 * radius * tolerance)
     for slot, (k, rev) in enumerate(zip(order, flip)):
         _, uv, p, n, c0, c = chunks[k]
@@ -282,31 +289,35 @@ def tool_path(
         lifted_count += int(np.sum(c[:, 2] > c0[:, 2] + 0.1 * tolerance))
         dense_count += len(c)
         keep = simplify(c, 0.5 * tolerance)
-        poly, pp, nn, uu = c[keep], p[keep], n[keep], uv[keep]
-        for _ in range(12):  # gouge check of every segment; lifted midpoints where it fails
-            clear, _ = clearance(index, poly, check_step)
-            bad = np.flatnonzero(clear < radius - tolerance)
-            if bad.size == 0:
-                break
-            mid = index.drop(0.5 * (poly[bad] + poly[bad + 1]), radius, rounds=40)
-            poly = np.insert(poly, bad + 1, mid, axis=0)
-            pp = np.insert(pp, bad + 1, 0.5 * (pp[bad] + pp[bad + 1]), axis=0)
-            nn = np.insert(nn, bad + 1, nn[bad], axis=0)
-            uu = np.insert(uu, bad + 1, 0.5 * (uu[bad] + uu[bad + 1]), axis=0)
-        min_clear = min(min_clear, float(clear.min()))
-        # chord error: the dense spiral of lifted centres against the programmed polyline
-        # (nearest point of the polyline sampled at T / 5: an upper bound, by at most T / 10)
-        d, _ = cKDTree(densify(poly, 0.2 * tolerance)).query(c)
-        max_chord = max(max_chord, float(d.max()))
-        keep = np.arange(len(poly))
-        centres.append(poly)
-        contacts.append(pp)
-        normals.append(nn)
-        params.append(uu)
+        polys.append(c[keep])
+        contacts.append(p[keep])
+        normals.append(n[keep])
+        params.append(uv[keep])
         piece_ids.append(np.full(len(keep), slot, dtype=np.int64))
-
+        dense.append(c)
+    centres, contacts, normals, params = (np.concatenate(x) for x in (polys, contacts, normals, params))
     piece = np.concatenate(piece_ids)
-    centres = np.concatenate(centres)
+    # Gouge check of every segment of every piece at once; lifted midpoints where it fails.
+    for _ in range(12):
+        within = piece[:-1] == piece[1:]
+        clear = clearance(index, centres, check_step, within)
+        bad = np.flatnonzero(within & (clear < radius - tolerance))
+        if bad.size == 0:
+            break
+        mid = index.drop(0.5 * (centres[bad] + centres[bad + 1]), radius, rounds=40)
+        centres = np.insert(centres, bad + 1, mid, axis=0)
+        contacts = np.insert(contacts, bad + 1, 0.5 * (contacts[bad] + contacts[bad + 1]), axis=0)
+        normals = np.insert(normals, bad + 1, normals[bad], axis=0)
+        params = np.insert(params, bad + 1, 0.5 * (params[bad] + params[bad + 1]), axis=0)
+        piece = np.insert(piece, bad + 1, piece[bad])
+    min_clear = float(clear[within].min()) if within.any() else np.inf
+    # chord error: the dense spiral of lifted centres against the programmed polyline
+    # (nearest point of the polyline sampled at T / 5: an upper bound, by at most T / 10)
+    max_chord = 0.0
+    for slot, c in enumerate(dense):
+        d, _ = cKDTree(densify(centres[piece == slot], 0.2 * tolerance)).query(c)
+        max_chord = max(max_chord, float(d.max()))
+
     report = {
         "pieces": len(pieces),
         "points": len(centres),
@@ -323,9 +334,9 @@ def tool_path(
         piece=piece,
         centres=centres,
         tips=centres - np.array([0.0, 0.0, radius]),
-        contacts=np.concatenate(contacts),
-        normals=np.concatenate(normals),
-        parameters=np.concatenate(params),
+        contacts=contacts,
+        normals=normals,
+        parameters=params,
         radius=float(radius),
         scallop=float(scallop),
         tolerance=tolerance,
@@ -335,28 +346,69 @@ def tool_path(
     )
 
 
-def clearance(index: SurfaceIndex, poly: np.ndarray, step: float) -> tuple[np.ndarray, float]:
+def _refine_dense(chunks: list, maps: list, index: SurfaceIndex, radius: float, tolerance: float, step: float, rounds: int = 6) -> None:
+    """Where a segment of the dense lifted spiral next to a lifted centre comes closer than
+    R - T / 2 to the surface (the drop-cutter's lift peaks between two samples), insert the
+    lifted centre of the contact midway in parameters, until none does or ``rounds`` passed
+    (in place; chunks: [k, uv, p, n, c0, c]).  The chord error is measured against this
+    dense path, so it should not dip into the surface where the programmed path may not."""
+    for _ in range(rounds):
+        lengths = [len(ch[5]) for ch in chunks]
+        pid = np.repeat(np.arange(len(chunks)), lengths)
+        within = pid[:-1] == pid[1:]
+        # only near lifted centres: elsewhere the ball rides its own contact, chord sagitta
+        # <= R T kappa / 4 (the certified check of the programmed path follows anyway)
+        rise = np.concatenate([ch[5][:, 2] - ch[4][:, 2] for ch in chunks]) > 0.1 * tolerance
+        near = np.convolve(rise.astype(float), np.ones(3), mode="same") > 0
+        within &= near[:-1] | near[1:]
+        clear = clearance(index, np.concatenate([ch[5] for ch in chunks]), step, within)
+        bad = np.flatnonzero(within & (clear < radius - 0.5 * tolerance))
+        if bad.size == 0:
+            return
+        first = np.r_[0, np.cumsum(lengths)[:-1]]
+        local = [bad[pid[bad] == k] - first[k] for k in range(len(chunks))]
+        new = []
+        for ch, pm, b in zip(chunks, maps, local):
+            uv = 0.5 * (ch[1][b] + ch[1][b + 1])
+            p, su, sv = pm.evaluate(uv)
+            n = unit_normals(su, sv)
+            new.append((uv, p, n, p + radius * n))
+        up = np.split(index.drop(np.concatenate([x[3] for x in new]), radius, rounds=40), np.cumsum([len(b) for b in local])[:-1])
+        for ch, b, (uv, p, n, c0), c in zip(chunks, local, new, up):
+            for slot, value in zip((1, 2, 3, 4, 5), (uv, p, n, c0, c)):
+                ch[slot] = np.insert(ch[slot], b + 1, value, axis=0)
+
+
+def clearance(index: SurfaceIndex, poly: np.ndarray, step: float, within: np.ndarray | None = None) -> np.ndarray:
     """Certified smallest distance to the surface along each segment of a polyline of ball
-    centres: (per segment (n-1,), overall minimum).
+    centres, (n-1,); segments where ``within`` is False (between pieces) are skipped (inf).
 
     Along a segment x(t) (t arc length), d(t)^2 - t^2 = min_q (|x(t) - q|^2 - t^2) is a minimum
     of functions linear in t, hence concave; so between two points a distance L apart with
     distances d_a, d_b, d^2 >= (1 - l) d_a^2 + l d_b^2 - l (1 - l) L^2 for l in [0, 1].  The
-    segment is sampled at spacing <= step, the distances measured (``SurfaceIndex.closest``),
-    and the bound minimised over l per interval."""
+    segment is sampled at spacing <= step, the distances measured (``SurfaceIndex.closest``,
+    all segments in one call), and the bound minimised over l per interval."""
+    within = np.ones(len(poly) - 1, dtype=bool) if within is None else within
     seg = np.linalg.norm(np.diff(poly, axis=0), axis=1)
-    parts = np.maximum(np.ceil(seg / step).astype(int), 1)
+    parts = np.where(within, np.maximum(np.ceil(seg / step).astype(int), 1), 0)
     start = np.repeat(np.arange(len(seg)), parts)
-    frac = np.concatenate([np.arange(k) / k for k in parts])
-    x = np.concatenate([poly[start] + frac[:, None] * (poly[start + 1] - poly[start]), poly[-1:]])
-    d, _, _ = index.closest(x)
-    a, b = d[:-1] ** 2, d[1:] ** 2
-    ll = np.repeat(seg / parts, parts) ** 2
+    frac = np.concatenate([np.arange(k) / k for k in parts if k]) if parts.any() else np.zeros(0)
+    x = poly[start] + frac[:, None] * (poly[start + 1] - poly[start])
+    # The next sample is the next row of x, except after the last sample of a piece's last
+    # segment (the end point of a piece is not the start of a sampled segment).
+    nxt = np.r_[start[1:], -1]
+    alone = np.flatnonzero((nxt != start) & (nxt != start + 1))
+    d = index.closest(np.concatenate([x, poly[start[alone] + 1]]))[0]
+    d_x = d[: len(x)]
+    d_b = np.r_[d_x[1:], 0.0]
+    d_b[alone] = d[len(x) :]
+    a, b = d_x**2, d_b**2
+    ll = np.repeat(np.where(parts > 0, seg / np.maximum(parts, 1), 0.0), parts) ** 2
     lam = np.clip((a - b + ll) / np.maximum(2 * ll, 1e-300), 0.0, 1.0)
     low = np.sqrt(np.maximum((1 - lam) * a + lam * b - lam * (1 - lam) * ll, 0.0))
     per = np.full(len(seg), np.inf)
     np.minimum.at(per, start, low)
-    return per, float(per.min()) if per.size else np.inf
+    return per
 
 
 def up_samples_mask(index: SurfaceIndex) -> np.ndarray:

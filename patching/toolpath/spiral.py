@@ -22,6 +22,14 @@ For a rectangle the contours are nested rectangles.  We write the construction i
   sit at rho = 2 theta + 2k and 2 theta + 2k + 1: never equal, so the curve is simple, and
   neighbouring passes are one contour index apart, at most one allowed spacing.  A radial link at
   theta = (m/2) mod 1 joins the arms' inner ends (rho = m to m - 1: nothing lies between them).
+* All of this is laid out in pass coordinates (X, Y) = (G_u(u), G_v(v)), where the contours
+  are the rectangles [q, N_u - q] x [q, N_v - q] and the spiral is a polyline with a vertex at
+  every quarter turn (the levels change linearly in between), and only then mapped to (u, v)
+  by the piecewise linear inverses of G_u, G_v, with a vertex wherever a segment crosses a knot
+  of those maps (between knots they are affine), so the polyline in (u, v) is the exact image.
+  (Placing the points along each side linearly in (u, v) instead, as a first version did,
+  shears neighbouring arms against each other where the density jumps: 0.54 passes uncovered
+  for a 6x jump into a narrow third.)
 * Corners: a point on the diagonal between the corners of two contours one pass apart lies
   sqrt(2) / (1 + sqrt(2)) = 0.586 passes from both (nearer the outer contour's sides than the
   inner contour's corner), not 0.5; so the densities are scaled by CORNER = 2 sqrt(2) /
@@ -55,10 +63,11 @@ def levels(centre: float) -> np.ndarray:
     return np.concatenate([[0.0], np.linspace(0.5, lam - 0.5, n + 1), inner[1:]])
 
 
-def _ring_points(q: np.ndarray, theta: np.ndarray, gu, gv, nu_pass: float, nv_pass: float) -> np.ndarray:
-    """(N, 2) parameter points at levels q and angles theta (gu, gv: inverse pass maps)."""
-    x0, x1 = gu(q), gu(nu_pass - q)
-    y0, y1 = gv(q), gv(nv_pass - q)
+def _ring_points(q: np.ndarray, theta: np.ndarray, nu_pass: float, nv_pass: float) -> np.ndarray:
+    """(N, 2) points in pass coordinates (X, Y) at levels q and angles theta: the contour at
+    level q is the rectangle [q, N_u - q] x [q, N_v - q] there, whatever the densities."""
+    x0, x1 = q, nu_pass - q
+    y0, y1 = q, nv_pass - q
     corners = np.stack(
         [np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], axis=1
     )
@@ -70,27 +79,51 @@ def _ring_points(q: np.ndarray, theta: np.ndarray, gu, gv, nu_pass: float, nv_pa
     return a + f * (b - a)
 
 
+def _crossings(x: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the polyline's coordinate x (N,) crosses a knot strictly inside a segment:
+    (segment index, fraction in (0, 1)) of every crossing."""
+    a, b = x[:-1], x[1:]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    first = np.searchsorted(knots, lo, side="right")
+    count = np.maximum(np.searchsorted(knots, hi, side="left") - first, 0)
+    seg = np.repeat(np.arange(a.size), count)
+    rank = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    k = knots[first[seg] + rank]
+    return seg, (k - a[seg]) / (b[seg] - a[seg])
+
+
+def pass_map_polyline(xy: np.ndarray, cu: np.ndarray, u_grid: np.ndarray, cv: np.ndarray, v_grid: np.ndarray) -> np.ndarray:
+    """The exact image in (u, v) of a polyline in pass coordinates under the piecewise linear
+    maps u = G_u^-1(X), v = G_v^-1(Y) (``np.interp`` over the knots cu, cv): between knots
+    the map is affine, so with a vertex added wherever a segment crosses a knot the image is
+    again a polyline, and a simple one if the pass polyline is simple (a homeomorphism)."""
+    su, fu = _crossings(xy[:, 0], cu)
+    sv, fv = _crossings(xy[:, 1], cv)
+    seg = np.concatenate([np.arange(len(xy)), su, sv])
+    frac = np.concatenate([np.zeros(len(xy)), fu, fv])
+    order = np.lexsort((frac, seg))
+    seg, frac = seg[order], frac[order]
+    nxt = np.minimum(seg + 1, len(xy) - 1)
+    p = xy[seg] + frac[:, None] * (xy[nxt] - xy[seg])
+    return np.stack([np.interp(p[:, 0], cu, u_grid), np.interp(p[:, 1], cv, v_grid)], axis=1)
+
+
 def fermat_spiral(
-    u_grid: np.ndarray, density_u: np.ndarray, v_grid: np.ndarray, density_v: np.ndarray, samples_per_turn: int = 400
+    u_grid: np.ndarray, density_u: np.ndarray, v_grid: np.ndarray, density_v: np.ndarray, samples_per_turn: int = 8
 ) -> np.ndarray:
     """The connected Fermat spiral of [0, u_grid[-1]] x [0, v_grid[-1]] as a parameter polyline
     (N, 2), from the corner (0, 0) to the opposite corner.
 
-    density_u: passes per unit u at u_grid (g_u >= 0), density_v likewise; every sample of
-    the four corners of each turn is included, so the polyline follows the contours exactly
-    there and interpolates between."""
+    density_u: passes per unit u at u_grid (g_u >= 0), density_v likewise.  In pass coordinates
+    the spiral is a polyline with a vertex at every corner of every turn (the levels change
+    linearly between them); its exact image in (u, v) (``pass_map_polyline``) is returned, with
+    at least ``samples_per_turn`` vertices per turn."""
     cu = CORNER * np.concatenate([[0.0], np.cumsum(0.5 * (density_u[1:] + density_u[:-1]) * np.diff(u_grid))])
     cv = CORNER * np.concatenate([[0.0], np.cumsum(0.5 * (density_v[1:] + density_v[:-1]) * np.diff(v_grid))])
     # Strictly increasing maps so that their inverses are functions.
     cu = cu + 1e-9 * np.arange(cu.size) / cu.size
     cv = cv + 1e-9 * np.arange(cv.size) / cv.size
     nu_pass, nv_pass = cu[-1], cv[-1]
-
-    def gu(q):
-        return np.interp(q, cu, u_grid)
-
-    def gv(q):
-        return np.interp(q, cv, v_grid)
 
     lam = levels(min(nu_pass, nv_pass) / 2)
     m = lam.size - 1
@@ -110,11 +143,14 @@ def fermat_spiral(
 
     half = m / 2
     phi_in = arm(0.0, half)
-    pin = _ring_points(level(2 * phi_in), phi_in, gu, gv, nu_pass, nv_pass)
-    rho_link = np.linspace(m, m - 1, 9)[1:-1]
-    plink = _ring_points(level(rho_link), np.full(rho_link.size, half), gu, gv, nu_pass, nv_pass)
+    pin = _ring_points(level(2 * phi_in), phi_in, nu_pass, nv_pass)
     phi_out = arm(half, 0.5) if half > 0.5 else np.array([0.5])
-    pout = _ring_points(level(2 * phi_out - 1), phi_out, gu, gv, nu_pass, nv_pass)
-    path = np.concatenate([pin, plink, pout])
-    keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-13, axis=1)])
-    return path[keep]
+    pout = _ring_points(level(2 * phi_out - 1), phi_out, nu_pass, nv_pass)
+    xy = np.concatenate([pin, pout])  # the link: one straight segment in pass space
+    keep = np.concatenate([[True], np.any(np.abs(np.diff(xy, axis=0)) > 1e-12 * (nu_pass + nv_pass), axis=1)])
+    path = pass_map_polyline(xy[keep], cu, u_grid, cv, v_grid)
+    scale = float(u_grid[-1] + v_grid[-1])
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9 * scale])
+    out = path[keep]
+    out[-1] = path[-1]  # the far corner exactly
+    return out
