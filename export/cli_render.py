@@ -23,14 +23,14 @@ __all__ = ["LOOKS", "add_arguments", "look_of", "picture_of", "run"]
 
 #: (flag, argparse keywords, mode of the parsed value or None when the flag is absent).
 LOOKS: list[tuple[str, dict, object]] = [
-    ("--zebra", dict(action="store_true", help="zebra stripes (reflection lines), shaded and anti-aliased"),
+    ("--zebra", {"action": "store_true", "help": "zebra stripes (reflection lines), shaded and anti-aliased"},
      lambda v: "zebra" if v else None),
-    ("--curvature", dict(nargs="?", const="mean", choices=tuple(CURVATURES),
-                         help="curvature colour map with a legend beside the model: mean (default), gaussian, "
-                              "k1, k2 (principal) or max-abs"),
+    ("--curvature", {"nargs": "?", "const": "mean", "choices": tuple(CURVATURES),
+                         "help": "curvature colour map with a legend beside the model: mean (default), gaussian, "
+                              "k1, k2 (principal) or max-abs"},
      lambda v: v),
-    ("--blending", dict(metavar="V", help="blending function of control point V (an index), or 'ep' for every "
-                                          "extraordinary point's: colours, iso-lines, local maxima (MESH only)"),
+    ("--blending", {"metavar": "V", "help": "blending function of control point V (an index), or 'ep' for every "
+                                          "extraordinary point's: colours, iso-lines, local maxima (MESH only)"},
      lambda v: None if v is None else "blending"),
 ]
 
@@ -125,6 +125,7 @@ def run(args: argparse.Namespace, options, size: tuple[int, int], progress) -> i
         sampled = sample_shape(shape, tolerance)
     else:
         from export.inputs import read_control_mesh
+
         from .render_geometry import grid_size
 
         mesh = read_control_mesh(source, args.intervals)

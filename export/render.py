@@ -7,7 +7,7 @@ derivatives); a STEP file is sampled with OpenCASCADE (``sample_shape``: ``BRepM
 deflection one pixel, and ``GeomLProp_SLProps`` at each node's (u, v)).
 
 - Zebra (reflection lines): a point p with unit normal n is seen along the ray
-  v = (p - e) / |p - e| from an eye e 1.5 model diagonals in front of the model (a finite eye:
+  v = (p - e) / |p - e| from an eye e one model diagonal in front of the model (a finite eye:
   a flat face shows straight stripes instead of one flat colour), reflected to
   r = v - 2 (v . n) n; the stripe parameter phi = asin(r . w) in [-pi/2, pi/2] is the
   reflected ray's angle out of the plane of the light lines, w the screen axis across them
@@ -38,11 +38,37 @@ import numpy as np
 from patching.errors import NupatchError
 
 from .render_camera import SHEET, VIEWS, Camera, fit, sheet_viewports
-from .render_scene import ZEBRA_DARK, ZEBRA_LIGHT, Field, Sampled, Style, ViewLayer, write_png
+from .render_scene import (
+    ZEBRA_DARK,
+    ZEBRA_LIGHT,
+    Field,
+    Sampled,
+    Style,
+    ViewLayer,
+    write_png,
+)
 
 __all__ = [
-    "MODES", "CURVATURES", "Field", "Picture", "Sampled", "Style", "sample_shape", "sample_surface",
-    "picture_pixel", "cameras", "zebra_parameter", "robust_range", "style", "render",
+    "CURVATURES",
+    "MODES",
+    "Field",
+    "Picture",
+    "Sampled",
+    "Style",
+    "ViewLayer",
+    "cameras",
+    "legend_width",
+    "mode_values",
+    "picture_pixel",
+    "render",
+    "robust_range",
+    "sample_shape",
+    "sample_surface",
+    "style",
+    "supersample_factor",
+    "write_png",
+    "zebra_parameter",
+    "zebra_values",
 ]
 
 MODES = ("shaded", "zebra", "mean", "gaussian", "k1", "k2", "max-abs", "blending")
@@ -114,7 +140,10 @@ def sample_surface(surface, pixel: float, lines: np.ndarray | None = None, m: in
     m = grid_size(surface, pixel) if m is None else int(m)
     s = sample_patches(surface, m)
     p = len(s.faces)
-    flat = lambda a: a.reshape(p * m * m, *a.shape[3:])  # noqa: E731
+
+    def flat(a: np.ndarray) -> np.ndarray:
+        return a.reshape(p * m * m, *a.shape[3:])
+
     return Sampled(
         flat(s.points), flat(s.normals), flat(s.mean), flat(s.gaussian), grid_triangles(p, m),
         np.zeros((0, 2, 3)) if lines is None else np.asarray(lines, dtype=float).reshape(-1, 2, 3),
@@ -132,8 +161,8 @@ def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sa
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
-    from .ocp_compat import TopoDS
-    from .ocp_compat import TopTools_IndexedMapOfShape
+
+    from .ocp_compat import TopoDS, TopTools_IndexedMapOfShape
 
     BRepMesh_IncrementalMesh(shape, float(tolerance), False, 0.1, False)
     faces = TopTools_IndexedMapOfShape()
@@ -301,7 +330,7 @@ def style(sampled: Sampled, mode: str, picture: Picture) -> Style:
     if mode == "zebra":
         n = 2 * picture.stripes
         table = np.where((np.arange(n) % 2 == 0)[:, None], ZEBRA_LIGHT, ZEBRA_DARK) * np.ones((1, 3))
-        return Style(table, (-math.pi / 2, math.pi / 2), None, "neither", (0.3, 0.7, 0.0))
+        return Style(table, (-math.pi / 2, math.pi / 2), None, "neither", (0.5, 0.5, 0.0))
     values = mode_values(sampled, mode)
     if mode == "blending":
         f = sampled.field
@@ -399,6 +428,3 @@ def render(sampled: Sampled, path: str | os.PathLike, mode: str = "shaded", size
         image = np.concatenate([image, strip], axis=1)
     write_png(image, Path(path))
     return used
-
-
-__all__ += ["ViewLayer", "legend_width", "zebra_values", "mode_values", "supersample_factor", "write_png"]

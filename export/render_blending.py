@@ -30,14 +30,19 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from patching.errors import NupatchError, UnsupportedError
-from patching.evaluation.sampling import blending_maxima_nodes, column_values, node_values, sample_graph
+from patching.evaluation.sampling import (
+    blending_maxima_nodes,
+    column_values,
+    node_values,
+    sample_graph,
+)
 from patching.mesh import NupatchWarning
 from patching.topology import Topology
 
 from .render_geometry import grid_triangles
 from .render_scene import Field, Sampled
 
-__all__ = ["control_points", "iso_levels", "iso_segments", "surface_field", "graph_sampled"]
+__all__ = ["control_points", "graph_sampled", "iso_levels", "iso_segments", "surface_field"]
 
 #: Height of the graph's peak, the layout being the unit disc.
 GRAPH_HEIGHT = 0.7

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VIEWS", "SHEET", "Camera", "frame", "fit", "sheet_viewports"]
+__all__ = ["SHEET", "VIEWS", "Camera", "fit", "frame", "sheet_viewports"]
 
 #: Named views: (azimuth, elevation) in degrees.  iso: the isometric view from front-right-top
 #: (elevation atan(1 / sqrt 2) = 35.26 deg, all three axes equally foreshortened).
@@ -31,6 +31,8 @@ VIEWS = {
 SHEET = ("front", "top", "right", "iso")
 #: Share of the viewport's shorter fitted side the model fills.
 FILL = 0.92
+#: The zebra's eye: this many model diagonals in front of the model's centre.
+EYE_DISTANCE = 1.0
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,7 @@ class Camera:
 
     view: unit direction the eye looks in; up, right: unit screen axes; centre: the model
     point at the viewport's centre; pixel: model units per pixel; eye: a point on the eye's
-    side, 1.5 model diagonals away (the zebra's rays start there: ``render.zebra_values``);
+    side, EYE_DISTANCE model diagonals away (the zebra's rays start there: ``render.zebra_values``);
     viewport: (x0, y0, x1, y1) pixels of the image, y from the top; label: view name."""
 
     view: np.ndarray
@@ -93,7 +95,7 @@ def fit(points: np.ndarray, azimuth: float, elevation: float, viewport: tuple[in
     pixel = max(span_x / (fill * width), span_y / (fill * height), 1e-12 * diagonal)
     centre_depth = 0.5 * (lo + hi) @ view
     centre = 0.5 * (x.min() + x.max()) * right + 0.5 * (y.min() + y.max()) * up + centre_depth * view
-    eye = centre - 1.5 * diagonal * view
+    eye = centre - EYE_DISTANCE * diagonal * view
     return Camera(view, up, right, centre, pixel, eye, viewport, label)
 
 

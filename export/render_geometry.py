@@ -30,7 +30,7 @@ from patching.bernstein import elevation_matrix_2d
 from patching.surface import BezierSurface
 from patching.toolpath.geometry import basis
 
-__all__ = ["EDGE_PIXELS", "MAX_SAMPLES", "MAX_VERTICES", "PatchSamples", "grid_size", "sample_patches", "grid_triangles"]
+__all__ = ["EDGE_PIXELS", "MAX_SAMPLES", "MAX_VERTICES", "PatchSamples", "grid_size", "grid_triangles", "sample_patches"]
 
 #: Largest triangle side in pixels of the final image (stripes are interpolated per pixel
 #: inside a triangle: smaller triangles keep them smooth where the surface is).

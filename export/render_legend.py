@@ -18,9 +18,9 @@ def legend_image(size: tuple[int, int], cmap: str, value_range: tuple[float, flo
 
     matplotlib.use("Agg")
     from matplotlib import colors, ticker
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colorbar import ColorbarBase
     from matplotlib.figure import Figure
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     w, h = size
     dpi = 100.0

@@ -37,7 +37,7 @@ def draw(sampled: Sampled, layers: list[ViewLayer], look: Style, size: tuple[int
     ambient, diffuse, _ = look.lighting
     for layer in layers:
         cam = layer.camera
-        x0, y0, x1, y1 = cam.viewport
+        x0, y0, _x1, _y1 = cam.viewport
         xy = cam.project(sampled.points)
         screen = xy[:, :2] * factor
         normal = sampled.normals[tri].mean(axis=1)
@@ -58,11 +58,9 @@ def draw(sampled: Sampled, layers: list[ViewLayer], look: Style, size: tuple[int
         polys.set_clip_box(None)
         ax.add_collection(polys)
         if len(layer.lines):
-            mid = layer.lines.mean(axis=1)
             seen = np.ones(len(layer.lines), dtype=bool)
             if sampled.edge_normals is not None and len(sampled.edge_normals) == len(layer.lines):
                 seen = sampled.edge_normals @ cam.view < 1e-9
-            del mid
             ends = cam.project(layer.lines.reshape(-1, 3))[:, :2].reshape(-1, 2, 2) * factor
             ax.add_collection(LineCollection(ends[seen], colors=layer.line_colours[seen], linewidths=layer.line_widths[seen] * factor * 0.72))
         if len(layer.markers):

@@ -11,7 +11,7 @@ import numpy as np
 
 from .render_camera import Camera
 
-__all__ = ["ZEBRA_DARK", "ZEBRA_LIGHT", "SHADED_COLOUR", "Field", "Sampled", "Style", "ViewLayer", "downsample", "write_png"]
+__all__ = ["SHADED_COLOUR", "ZEBRA_DARK", "ZEBRA_LIGHT", "Field", "Sampled", "Style", "ViewLayer", "downsample", "write_png"]
 
 #: Dark and light band grey levels of the zebra; the colour of a shaded picture.
 ZEBRA_DARK, ZEBRA_LIGHT = 0.06, 0.97

@@ -27,7 +27,11 @@ MULTI = 0
 def draw(sampled: Sampled, layers: list[ViewLayer], look: Style, size: tuple[int, int], factor: int) -> np.ndarray:
     """(h, w, 3) uint8 image of ``size`` (the model area) with one viewport per layer."""
     import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
+    from vtk.util.numpy_support import (
+        numpy_to_vtk,
+        numpy_to_vtkIdTypeArray,
+        vtk_to_numpy,
+    )
 
     vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)  # "bad X server connection"
     vtk.vtkObject.GlobalWarningDisplayOff()

@@ -12,8 +12,16 @@ import numpy as np
 import pytest
 
 import patching
-from export.render import Picture, cameras, render, robust_range, sample_surface, style, zebra_parameter
-from export.render_blending import _region_layout, iso_segments, iso_levels
+from export.render import (
+    Picture,
+    cameras,
+    render,
+    robust_range,
+    sample_surface,
+    style,
+    zebra_parameter,
+)
+from export.render_blending import _region_layout, iso_levels, iso_segments
 from export.render_geometry import sample_patches
 from patching.surface import PatchGroup
 from tests.conftest import REPO
@@ -163,7 +171,7 @@ def test_zebra_on_a_sphere_like_part_has_many_thin_stripes(tmp_path):
     dark = grey[row, inside[0] + 2 : inside[-1] - 2] < 60
     assert np.count_nonzero(dark[1:] != dark[:-1]) >= 20  # stripe edges along the middle line
     for band in (part & (grey < 60), part & (grey > 150)):
-        labels, n = ndimage.label(band)
+        labels, _n = ndimage.label(band)
         largest = np.bincount(labels.ravel())[1:].max()
         assert largest < 0.05 * part.sum()  # no flat black or white region
 
@@ -171,11 +179,11 @@ def test_zebra_on_a_sphere_like_part_has_many_thin_stripes(tmp_path):
 @pytest.mark.parametrize("crease", [True, False])
 def test_a_g0_ridge_breaks_the_stripes_and_a_g1_ridge_does_not(tmp_path, crease):
     size = (240, 240)
-    look = dict(view="top", stripes=6, stripe_direction=45.0, supersample=2)
+    look = {"view": "top", "stripes": 6, "stripe_direction": 45.0, "supersample": 2}
     image, sampled, pic = picture(tent(crease=crease), tmp_path, f"tent{crease}", "zebra", size=size, **look)
     cam = cameras(sampled.points, size, pic, legend=False)[0]
     grey = image.mean(axis=-1) / 255.0
-    x_ridge = int(round(cam.project(np.zeros((1, 3)))[0, 0]))
+    x_ridge = round(cam.project(np.zeros((1, 3)))[0, 0])
     rows = slice(40, 200)  # inside the part, across its middle
     across = np.abs(grey[rows, x_ridge - 2] - grey[rows, x_ridge + 2]).mean()
     aside = np.abs(grey[rows, x_ridge - 42] - grey[rows, x_ridge - 38]).mean()  # a smooth place
@@ -231,7 +239,8 @@ def test_blending_functions_mark_their_maxima_and_the_sheet_has_four_views(tmp_p
     np.testing.assert_allclose(values[at, np.arange(len(columns))], values.max(axis=0), rtol=1e-12)
     path = tmp_path / "b.png"
     render(sampled, path, "blending", (240, 180), picture=Picture(supersample=1))
-    red = (lambda im: (im[..., 0] > 180) & (im[..., 1] < 60) & (im[..., 2] < 60))(pixels(path))
+    im = pixels(path)
+    red = (im[..., 0] > 180) & (im[..., 1] < 60) & (im[..., 2] < 60)
     assert ndimage.label(red)[1] >= 3  # the maxima in view are marked
     graph = graph_sampled(operator, mesh, columns[:1], m, "EP")
     assert graph.field.values.max() == pytest.approx(graph.points[:, 2].max() / 0.7 * graph.field.values.max())
@@ -261,10 +270,10 @@ def test_cli_renders_a_step_file(tmp_path, run_cli):
 
 
 @pytest.mark.parametrize("look, fragment", [
-    (dict(stripes=0), "--stripes 0"),
-    (dict(elevation=100.0), "-90 to 90"),
-    (dict(value_range=(1.0, 0.0)), "LO < HI"),
-    (dict(views=2), "--views 2"),
+    ({"stripes": 0}, "--stripes 0"),
+    ({"elevation": 100.0}, "-90 to 90"),
+    ({"value_range": (1.0, 0.0)}, "LO < HI"),
+    ({"views": 2}, "--views 2"),
 ])
 def test_bad_picture_options_are_refused(look, fragment):
     with pytest.raises(patching.NupatchError, match=fragment.replace("(", r"\(")):
