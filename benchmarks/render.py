@@ -4,6 +4,11 @@ models/l_bracket.obj and models/machined_bracket.obj, in one process after a war
 seconds beside the wall-clock ones (a shared machine's wall clock includes other work).
 
     .venv/bin/python benchmarks/render.py [--size 1600x1200] [--modes zebra,mean,blending]
+    .venv/bin/python benchmarks/render.py --figure docs/figures/zebra_g0_g1.png
+
+--figure draws docs/pictures.md's G0/G1 picture instead: ``tests.helpers.roof_mesh`` with its
+ridge creased (G0) and not (G1), zebra from the top with light lines at 45 degrees, side by
+side (the configuration ``tests/test_render.py`` judges by its pixels).
 """
 
 from __future__ import annotations
@@ -19,10 +24,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import patching  # noqa: E402
-from export.render import Picture, picture_pixel, render, sample_surface  # noqa: E402
-from export.render_blending import control_points, surface_field  # noqa: E402
-from export.render_geometry import grid_size  # noqa: E402
+import patching
+from export.render import Picture, picture_pixel, render, sample_surface
+from export.render_blending import control_points, surface_field
+from export.render_geometry import grid_size
 
 MODELS = ("l_bracket", "machined_bracket")
 
@@ -54,14 +59,41 @@ def picture(name: str, mode: str, size: tuple[int, int], out: Path) -> dict:
     t = clocks()
     used = render(sampled, out / f"{name}_{mode}.png", mode, size, picture=pic)
     draw = since(t)
-    return dict(build=build, sample=sample, draw=draw, m=m, vertices=len(sampled.points), used=used)
+    return {"build": build, "sample": sample, "draw": draw, "m": m, "vertices": len(sampled.points), "used": used}
+
+
+def g0_g1_figure(path: Path, side: int = 400) -> None:
+    """The roof with a G0 ridge (left) and a G1 one (right), zebra from the top."""
+    from export.atomic import atomic_output
+    from export.render_scene import write_png
+    from tests.helpers import roof_mesh
+
+    pic = Picture(view="top", stripes=12, stripe_direction=45.0)
+    images = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for crease in (True, False):
+            surface = patching.build(roof_mesh(crease=crease))
+            coefficients = np.concatenate([g.coefficients.reshape(-1, 3) for g in surface.groups])
+            sampled = sample_surface(surface, picture_pixel(coefficients, (side, side), pic, False))
+            out = Path(tmp) / f"{crease}.png"
+            render(sampled, out, "zebra", (side, side), picture=pic)
+            from matplotlib import image as mpimg
+
+            images.append((mpimg.imread(out)[..., :3] * 255).round().astype(np.uint8))
+    gap = np.full((side, side // 20, 3), 255, np.uint8)
+    with atomic_output(path) as tmp_path:
+        write_png(np.concatenate([images[0], gap, images[1]], axis=1), Path(tmp_path))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", default="1600x1200")
     parser.add_argument("--modes", default="zebra,mean,blending")
+    parser.add_argument("--figure", type=Path, help="draw the G0/G1 zebra figure to this PNG instead")
     args = parser.parse_args()
+    if args.figure:
+        g0_g1_figure(args.figure)
+        return
     size = tuple(int(x) for x in args.size.split("x"))
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)

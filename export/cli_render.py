@@ -168,9 +168,11 @@ def _box_corners(shape) -> np.ndarray:
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
 
+    from .ocp_compat import box_bounds
+
     box = Bnd_Box()
-    BRepBndLib.Add_s(shape, box)
-    x0, y0, z0, x1, y1, z1 = box.Get()
+    BRepBndLib.Add_s(shape, box, False)  # the poles' box: cheap, and contains the faces
+    x0, y0, z0, x1, y1, z1 = box_bounds(box)
     corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)], dtype=float)
     if not np.isfinite(corners).all():
         raise NupatchError("the shape has no finite bounding box", "render")

@@ -377,7 +377,11 @@ def _layers(sampled: Sampled, mode: str, picture: Picture, overlay: bool, legend
             widths = np.concatenate([np.full(len(g[0]), g[2]) for g in groups])
         else:
             lines, colours, widths = np.zeros((0, 2, 3)), np.zeros((0, 3)), np.zeros(0)
-        markers = sampled.field.markers if (mode == "blending" and sampled.field is not None) else np.zeros((0, 3))
+        markers = np.zeros((0, 3))
+        if mode == "blending" and sampled.field is not None:
+            markers = sampled.field.markers
+            if sampled.field.marker_normals is not None:  # hidden behind the part: not drawn
+                markers = markers[sampled.field.marker_normals @ cam.view < -0.05]
         out.append(ViewLayer(cam, scalars, lines, colours, widths, markers))
     return out
 

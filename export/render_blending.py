@@ -105,14 +105,14 @@ def iso_segments(points: np.ndarray, triangles: np.ndarray, values: np.ndarray, 
 
 
 def _maxima(operator, columns: np.ndarray, m: int, rows: np.ndarray, flat_points: np.ndarray, row_index: np.ndarray) -> np.ndarray:
-    """(k, 3) positions of the local maxima of every column's function (module docstring);
-    flat_points: the picture's vertices of the patch grids of ``rows`` (row_index: position of
-    each row among the picture's patches)."""
+    """(k, c) rows of ``flat_points`` at the local maxima of every column's function (module
+    docstring); flat_points: (v, c) per vertex of the picture's patch grids of ``rows``
+    (positions, or positions and normals; row_index: each row's place among those patches)."""
     try:
         graph = sample_graph(operator, rows, m)
     except UnsupportedError as exc:  # T-junctions: no joined grid to judge maxima across edges
         warnings.warn(NupatchWarning(f"local maxima not marked: {exc}"))
-        return np.zeros((0, 3))
+        return np.zeros((0, flat_points.shape[1]))
     values, _ = node_values(graph, column_values(operator, columns, rows, m))
     flat_node = graph.node.ravel()
     _, first = np.unique(flat_node, return_index=True)  # a sample of every node
@@ -122,7 +122,7 @@ def _maxima(operator, columns: np.ndarray, m: int, rows: np.ndarray, flat_points
         sample = first[nodes]
         p, rest = np.divmod(sample, m * m)
         found.append(flat_points[row_index[p] * m * m + rest])
-    return np.concatenate(found) if found else np.zeros((0, 3))
+    return np.concatenate(found) if found else np.zeros((0, flat_points.shape[1]))
 
 
 def surface_field(operator, sampled: Sampled, columns: np.ndarray, m: int, label: str) -> Sampled:
@@ -131,11 +131,12 @@ def surface_field(operator, sampled: Sampled, columns: np.ndarray, m: int, label
     rows = np.arange(sum(len(g.faces) for g in operator.groups), dtype=np.int64)
     values = column_values(operator, columns, rows, m)  # (p, m, m, k)
     field_values = values.max(axis=-1).reshape(-1)
-    markers = _maxima(operator, columns, m, rows, sampled.points, rows)
+    both = _maxima(operator, columns, m, rows, np.concatenate([sampled.points, sampled.normals], axis=1), rows)
     peak = float(field_values.max())
     from dataclasses import replace
 
-    return replace(sampled, field=Field(field_values, label, "", markers, iso_levels(peak), range=(0.0, peak)))
+    field = Field(field_values, label, "", both[:, :3], iso_levels(peak), range=(0.0, peak), marker_normals=both[:, 3:])
+    return replace(sampled, field=field)
 
 
 def _region_layout(pm, region_faces: np.ndarray, name: str) -> dict[int, np.ndarray]:

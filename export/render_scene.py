@@ -23,7 +23,9 @@ class Field:
     """A scalar function drawn as colours with iso-lines and marked points (blending functions).
 
     values: (v,) per vertex; title, unit: the legend's; markers: (k, 3) points (local maxima);
-    levels: iso-values; lines: (l, 2, 3) extra segments (the control mesh in a graph)."""
+    levels: iso-values; lines: (l, 2, 3) extra segments (the control mesh in a graph); range:
+    the colour range (default: the values'); marker_normals: (k, 3) surface normals at the
+    markers (a view hides those facing away)."""
 
     values: np.ndarray
     title: str
@@ -32,6 +34,7 @@ class Field:
     levels: tuple[float, ...] = ()
     lines: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     range: tuple[float, float] | None = None
+    marker_normals: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

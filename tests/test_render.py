@@ -25,6 +25,7 @@ from export.render_blending import _region_layout, iso_levels, iso_segments
 from export.render_geometry import sample_patches
 from patching.surface import PatchGroup
 from tests.conftest import REPO
+from tests.helpers import roof_mesh
 
 Image = pytest.importorskip("PIL.Image")
 ndimage = pytest.importorskip("scipy.ndimage")
@@ -50,17 +51,6 @@ def assert_drawn(image: np.ndarray, size: tuple[int, int]) -> None:
     assert image.shape == (size[1], size[0], 3)
     assert 0.05 < drawn(image).mean() < 0.95, "nothing (or only the model's box) drawn"
     assert image.std() > 20
-
-
-def tent(n: int = 4, slope: float = 0.08, crease: bool = True):
-    """A roof z = -slope |x| over [-2, 2]^2 on an n x n grid; the ridge x = 0 creased
-    (infinitely sharp: a G0 edge) or not (the subdivision rounds it: G1)."""
-    xs = np.linspace(-2, 2, n + 1)
-    verts = [[x, y, -slope * abs(x)] for x in xs for y in xs]
-    faces = [[i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1] for i in range(n) for j in range(n)]
-    ridge = n // 2
-    creases = {(ridge * (n + 1) + j, ridge * (n + 1) + j + 1): 10.0 for j in range(n)} if crease else {}
-    return patching.from_arrays(verts, faces, creases=creases, name="tent")
 
 
 def picture(mesh, tmp_path, name: str, mode: str, size=(240, 180), renderer="vtk", **look):
@@ -180,7 +170,7 @@ def test_zebra_on_a_sphere_like_part_has_many_thin_stripes(tmp_path):
 def test_a_g0_ridge_breaks_the_stripes_and_a_g1_ridge_does_not(tmp_path, crease):
     size = (240, 240)
     look = {"view": "top", "stripes": 6, "stripe_direction": 45.0, "supersample": 2}
-    image, sampled, pic = picture(tent(crease=crease), tmp_path, f"tent{crease}", "zebra", size=size, **look)
+    image, sampled, pic = picture(roof_mesh(crease=crease), tmp_path, f"tent{crease}", "zebra", size=size, **look)
     cam = cameras(sampled.points, size, pic, legend=False)[0]
     grey = image.mean(axis=-1) / 255.0
     x_ridge = round(cam.project(np.zeros((1, 3)))[0, 0])
