@@ -101,6 +101,35 @@ def test_curvature_from_the_patch_matches_the_graph_formulas():
     np.testing.assert_allclose(s.gaussian[1], 0.0, atol=1e-14)
 
 
+def test_a_step_files_curvatures_from_opencascade_match_the_patches(tmp_path, run_cli):
+    from scipy.spatial import cKDTree
+
+    from export import write_step
+    from export.brep import to_shape
+    from export.render import sample_shape
+
+    surface = patching.build(patching.read_mesh(TORUS))
+    shape = to_shape(surface)
+    patches = sample_surface(surface, 1.0, m=17)
+    step = sample_shape(shape, 0.02)
+    _, near = cKDTree(patches.points).query(step.points)
+    for name in ("mean", "gaussian", "k1", "k2"):
+        a, b = getattr(patches, name)[near], getattr(step, name)
+        scale = np.nanpercentile(np.abs(a), 90)
+        assert np.nanmedian(np.abs(a - b)) < 0.05 * scale, name  # same signs and sizes
+    # the torus (tube radius ~1, ring ~3): convex outside (K > 0, H > 0), saddle inside
+    ring = np.linalg.norm(patches.points[:, :2], axis=1)
+    assert np.mean(patches.gaussian[ring > 3.3] > 0) > 0.95 and np.mean(patches.gaussian[ring < 2.7] < 0) > 0.95
+    assert np.mean(patches.mean[ring > 3.3] > 0) > 0.95 and 0.3 < np.median(np.abs(patches.mean)) < 1.5
+    # and through the command line
+    path = write_step(shape, tmp_path / "ring.step", "ring")
+    out = tmp_path / "ring.png"
+    result = run_cli("render", path, "--curvature", "k1", "--mesh", "-o", out, "--size", "200x150", "--tolerance", "0.05")
+    assert result.returncode == 0, result.stderr
+    assert "vtk" in result.stderr and "X server" not in result.stderr  # VTK's warning silenced
+    assert_drawn(pixels(out), (200, 150))
+
+
 def test_zebra_parameter_is_the_reflected_rays_elevation():
     view, up = np.array([0.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0])
     normals = np.array([[0.0, 0.0, 1.0], [np.sin(0.1), 0.0, np.cos(0.1)]])
@@ -247,16 +276,6 @@ def test_matplotlib_fallback_draws_the_same_picture(tmp_path):
     mpl_image, _, _ = picture(CUBE, tmp_path, "m", "mean", size=(200, 150), renderer="matplotlib", supersample=1)
     assert_drawn(mpl_image, (200, 150))
     assert (drawn(vtk_image) != drawn(mpl_image)).mean() < 0.05  # same camera, same silhouette
-
-
-def test_cli_renders_a_step_file(tmp_path, run_cli):
-    step = tmp_path / "ring.step"
-    assert run_cli("build", TORUS, "-o", step, "-q").returncode == 0
-    out = tmp_path / "ring.png"
-    result = run_cli("render", step, "--curvature", "k1", "--mesh", "-o", out, "--size", "200x150")
-    assert result.returncode == 0, result.stderr
-    assert "vtk" in result.stderr and "X server" not in result.stderr  # VTK's warning silenced
-    assert_drawn(pixels(out), (200, 150))
 
 
 @pytest.mark.parametrize("look, fragment", [
