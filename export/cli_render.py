@@ -4,7 +4,8 @@ the picture options and the run (``export.render``, docs/pictures.md).
 ``export.cli`` makes the sub-parser, adds the build options, ``-q`` and ``--intervals``, and
 calls ``add_arguments`` and ``run``.  The look of a picture is one flag of a mutually
 exclusive group, listed in ``LOOKS``: a new mode is one entry there (its flag, argparse
-keywords, and the mode its parsed value selects) plus its case in ``export.render``."""
+keywords, and the mode its parsed value selects) plus its case in ``export.render``.  Another
+surface to draw (instead of the patches) is one entry of ``SOURCES`` plus its options."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from patching.errors import NupatchError
 from .render import CURVATURES, Picture
 from .render_camera import VIEWS
 
-__all__ = ["LOOKS", "add_arguments", "look_of", "picture_of", "run"]
+__all__ = ["LOOKS", "SOURCES", "add_arguments", "look_of", "picture_of", "run"]
 
 #: (flag, argparse keywords, mode of the parsed value or None when the flag is absent).
 LOOKS: list[tuple[str, dict, object]] = [
@@ -33,6 +34,14 @@ LOOKS: list[tuple[str, dict, object]] = [
                                           "extraordinary point's: colours, iso-lines, local maxima (MESH only)"},
      lambda v: None if v is None else "blending"),
 ]
+
+
+#: Other surfaces than the patches, for other modules' pictures (a subdivided mesh with shading
+#: normals, say): (wants(args) -> bool, sample(args, mesh, pixel, lines) -> render.Sampled).
+#: The first whose ``wants`` accepts the parsed arguments samples the mesh instead of the patches
+#: (pixel: model units per pixel of the picture; lines: the control mesh's edges or None); every
+#: look that needs only points, normals and triangles (shaded, zebra) then works on it.
+SOURCES: list[tuple[object, object]] = []
 
 
 def _stripe_direction(text: str) -> float:
@@ -90,9 +99,9 @@ def picture_of(args: argparse.Namespace) -> Picture:
 def run(args: argparse.Namespace, options, size: tuple[int, int], progress) -> int:
     """Draw the picture (``export.cli`` has parsed ``size`` and made the BuildOptions)."""
     import patching
-    from export.atomic import atomic_output, check_output_path
+    from export.atomic import check_output_path
 
-    from .render import picture_pixel, render, sample_shape, sample_surface
+    from .render import picture_pixel, sample_shape, sample_surface
 
     source = Path(args.source)
     out = Path(args.output) if args.output else source.with_suffix(".png")
@@ -129,13 +138,15 @@ def run(args: argparse.Namespace, options, size: tuple[int, int], progress) -> i
         from .render_geometry import grid_size
 
         mesh = read_control_mesh(source, args.intervals)
+        lines = mesh.vertices[np.asarray(patching.Topology(mesh).edges)] if args.mesh else None
+        other = next((sample for wants, sample in SOURCES if wants(args)), None)
+        if other is not None:
+            sampled = other(args, mesh, picture_pixel(mesh.vertices, size, picture, legend), lines)
+            return _draw(sampled, out, mode, size, args, picture, progress, start)
         operator = patching.build_operator(mesh, options)
         surface = operator.evaluate(mesh.vertices)
         if surface.n_patches == 0:
             patching.build(mesh, options)  # raises build's own message for an empty surface
-        lines = None
-        if args.mesh:
-            lines = mesh.vertices[np.asarray(patching.Topology(mesh).edges)]
         if args.tolerance is not None:
             from export.budget import check_tessellation_budget
 
@@ -157,6 +168,14 @@ def run(args: argparse.Namespace, options, size: tuple[int, int], progress) -> i
                 sampled = surface_field(operator, sample_surface(surface, pixel, lines, m), columns, m, label)
         else:
             sampled = sample_surface(surface, pixel, lines, m)
+    return _draw(sampled, out, mode, size, args, picture, progress, start)
+
+
+def _draw(sampled, out: Path, mode: str, size, args, picture, progress, start: float) -> int:
+    from export.atomic import atomic_output
+
+    from .render import render
+
     with atomic_output(out) as tmp:
         used = render(sampled, tmp, mode, size, overlay=args.mesh, renderer=args.renderer, picture=picture)
     progress(f"drew {out} ({mode}, {size[0]}x{size[1]}, {used}) in {time.perf_counter() - start:.2f} s")

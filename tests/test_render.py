@@ -138,6 +138,27 @@ def test_zebra_parameter_is_the_reflected_rays_elevation():
     np.testing.assert_allclose(zebra_parameter(normals, view, up, 90.0), [0.0, 0.0], atol=1e-15)
 
 
+def test_named_views_look_as_drawings_do():
+    from export.render_camera import VIEWS, fit, frame
+
+    expect = {  # (view direction, screen up, screen right)
+        "front": ((0, 1, 0), (0, 0, 1), (1, 0, 0)),
+        "right": ((-1, 0, 0), (0, 0, 1), (0, 1, 0)),
+        "top": ((0, 0, -1), (0, 1, 0), (1, 0, 0)),
+        "back": ((0, -1, 0), (0, 0, 1), (-1, 0, 0)),
+    }
+    for name, vectors in expect.items():
+        np.testing.assert_allclose(np.array(frame(*VIEWS[name])), np.array(vectors, dtype=float), atol=1e-12)
+    view, up, right = frame(*VIEWS["iso"])  # from front-right-top
+    assert view @ [0, 1, 0] > 0 and view @ [-1, 0, 0] > 0 and view @ [0, 0, -1] > 0
+    # the fitted camera puts the box's corners inside the viewport, filling it
+    corners = np.array([[x, y, z] for x in (0, 4) for y in (0, 1) for z in (0, 2)], dtype=float)
+    cam = fit(corners, *VIEWS["front"], (0, 0, 200, 100))
+    xy = cam.project(corners)[:, :2]
+    assert xy.min() >= 0 and xy[:, 0].max() <= 200 and xy[:, 1].max() <= 100
+    assert np.ptp(xy[:, 0]) == pytest.approx(0.92 * 200)
+
+
 def test_robust_range_ignores_spikes_and_is_symmetric_for_a_diverging_map():
     values = np.r_[np.linspace(-1.0, 2.0, 1000), 1e6, -1e5, np.nan]
     lo, hi = robust_range(values)
@@ -269,6 +290,26 @@ def test_blending_functions_mark_their_maxima_and_the_sheet_has_four_views(tmp_p
     image, _, _ = picture(CUBE, tmp_path, "sheet", "zebra", size=(240, 180), views=4, edges=True, supersample=1)
     for quadrant in (image[:90, :120], image[:90, 120:], image[90:, :120], image[90:, 120:]):
         assert 0.1 < drawn(quadrant).mean()
+
+
+def test_another_surface_is_drawn_through_the_sources_hook(tmp_path, monkeypatch):
+    from export import cli, cli_render
+    from export.render import Sampled
+
+    obj = tmp_path / "cube.obj"
+    obj.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in CUBE.vertices)
+                   + "".join("f " + " ".join(str(v + 1) for v in q) + "\n" for q in CUBE.quads()))
+
+    def octahedron(args, mesh, pixel, lines):  # what another module would sample
+        p = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+        tri = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [1, 0, 5], [2, 1, 5], [3, 2, 5], [0, 3, 5]])
+        assert 0 < pixel < 1 and mesh.n_faces == 6
+        return Sampled(p, p.copy(), np.zeros(6), np.zeros(6), tri, np.zeros((0, 2, 3)))
+
+    monkeypatch.setattr(cli_render, "SOURCES", [(lambda args: args.zebra, octahedron)])
+    out = tmp_path / "o.png"
+    assert cli.main(["render", str(obj), "--zebra", "-o", str(out), "--size", "120x90", "-q"]) == 0
+    assert_drawn(pixels(out), (120, 90))
 
 
 def test_matplotlib_fallback_draws_the_same_picture(tmp_path):
