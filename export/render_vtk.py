@@ -24,14 +24,33 @@ MARKER_PIXELS = 5.0
 MULTI = 0
 
 
+def _vtk():
+    """The VTK classes used here, from their own modules: ``import vtk`` loads all of VTK
+    (seconds); the OpenGL2 module registers the render window (``draw`` adds FreeType, the
+    text back end, only for a picture with view labels)."""
+    from types import SimpleNamespace
+
+    import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkLookupTable, vtkObject, vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkFiltersCore import vtkGlyph3D
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+    from vtkmodules.vtkRenderingCore import (
+        vtkActor,
+        vtkPolyDataMapper,
+        vtkRenderer,
+        vtkRenderWindow,
+        vtkTextActor,
+        vtkWindowToImageFilter,
+    )
+
+    return SimpleNamespace(**{k: v for k, v in locals().items() if k.startswith("vtk") and k != "vtkmodules"})
+
+
 def draw(sampled: Sampled, layers: list[ViewLayer], look: Style, size: tuple[int, int], factor: int) -> np.ndarray:
     """(h, w, 3) uint8 image of ``size`` (the model area) with one viewport per layer."""
-    import vtk
-    from vtk.util.numpy_support import (
-        numpy_to_vtk,
-        numpy_to_vtkIdTypeArray,
-        vtk_to_numpy,
-    )
+    vtk = _vtk()
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
 
     vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)  # "bad X server connection"
     vtk.vtkObject.GlobalWarningDisplayOff()
@@ -48,6 +67,8 @@ def draw(sampled: Sampled, layers: list[ViewLayer], look: Style, size: tuple[int
         {"polys": data.SetPolys, "lines": data.SetLines, "verts": data.SetVerts}[kind](array)
         return data
 
+    if any(layer.camera.label for layer in layers):
+        import vtkmodules.vtkRenderingFreeType  # noqa: F401
     w, h = size
     window = vtk.vtkRenderWindow()
     window.SetOffScreenRendering(1)
