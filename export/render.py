@@ -16,8 +16,8 @@ deflection one pixel, and ``GeomLProp_SLProps`` at each node's (u, v)).
   a stripe breaks across a normal jump (G0 only) and kinks across a curvature jump (G1, not
   G2).  asin rather than an angle around an axis: no wrap-around seam.  The bands are shaded
   (diffuse light from the eye) so the shape reads under them; edges are anti-aliased by
-  supersampling (the image drawn ``supersample`` times larger and averaged down) on top of
-  VTK's multisampling.
+  supersampling (the image drawn ``supersample`` times larger and averaged down; above 4
+  megapixels only VTK's multisampling, which smooths triangle edges, not stripe edges).
 - Curvature: mean H, Gaussian K, principal k1 >= k2 (``render_geometry``'s signs: convex > 0)
   or max(|k1|, |k2|); the colour range is the 2nd to 98th percentile of the values weighted
   by area (or ``--range``), symmetric about 0 in a diverging map for the signed ones; values
@@ -387,7 +387,7 @@ def _layers(sampled: Sampled, mode: str, picture: Picture, overlay: bool, legend
 
 
 def supersample_factor(size: tuple[int, int], picture: Picture) -> int:
-    """Automatic supersampling: 3 up to 1 megapixel, 2 up to 4, then 1 (multisampling only)."""
+    """Automatic supersampling: 3 up to 1 megapixel, 2 up to 4, then 1 (VTK multisamples then)."""
     if picture.supersample is not None:
         return picture.supersample
     pixels = size[0] * size[1]

@@ -131,7 +131,8 @@ def surface_field(operator, sampled: Sampled, columns: np.ndarray, m: int, label
     rows = np.arange(sum(len(g.faces) for g in operator.groups), dtype=np.int64)
     values = column_values(operator, columns, rows, m)  # (p, m, m, k)
     field_values = values.max(axis=-1).reshape(-1)
-    both = _maxima(operator, columns, m, rows, np.concatenate([sampled.points, sampled.normals], axis=1), rows)
+    touched = rows[np.abs(values).reshape(len(rows), -1).max(axis=1) > 0]  # the supports
+    both = _maxima(operator, columns, m, touched, np.concatenate([sampled.points, sampled.normals], axis=1), touched)
     peak = float(field_values.max())
     from dataclasses import replace
 
