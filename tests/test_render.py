@@ -214,6 +214,11 @@ def test_zebra_on_a_sphere_like_part_has_many_thin_stripes(tmp_path):
         labels, _n = ndimage.label(band)
         largest = np.bincount(labels.ravel())[1:].max()
         assert largest < 0.05 * part.sum()  # no flat black or white region
+    # anti-aliased: stripe edges take intermediate greys (dark bands are below 16, light ones
+    # above 120 even at grazing light), which a picture drawn without supersampling lacks
+    jagged, _, _ = picture(CUBE, tmp_path, "jagged", "zebra", size=(320, 240), supersample=1)
+    between = [np.mean((g > 40) & (g < 100) & drawn(im)) for im in (image, jagged) for g in [im.mean(axis=-1)]]
+    assert between[0] > 0.02 and between[0] > 3 * between[1]
 
 
 @pytest.mark.parametrize("crease", [True, False])
