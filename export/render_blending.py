@@ -42,7 +42,7 @@ from patching.topology import Topology
 from .render_geometry import grid_triangles
 from .render_scene import Field, Sampled
 
-__all__ = ["control_points", "graph_sampled", "iso_levels", "iso_segments", "surface_field"]
+__all__ = ["control_points", "graph_sampled", "iso_levels", "iso_segments", "region_layout", "surface_field"]
 
 #: Height of the graph's peak, the layout being the unit disc.
 GRAPH_HEIGHT = 0.7
@@ -140,7 +140,7 @@ def surface_field(operator, sampled: Sampled, columns: np.ndarray, m: int, label
     return replace(sampled, field=field)
 
 
-def _region_layout(pm, region_faces: np.ndarray, name: str) -> dict[int, np.ndarray]:
+def region_layout(pm, region_faces: np.ndarray, name: str) -> dict[int, np.ndarray]:
     """Tutte layout (module docstring) of the faces ``region_faces`` of mesh ``pm``:
     {vertex: (2,) position}."""
     topo = Topology(pm)
@@ -212,7 +212,7 @@ def graph_sampled(operator, mesh, columns: np.ndarray, m: int, label: str) -> Sa
     for k, c in enumerate(columns.tolist()):
         v = per_row[..., k]
         rows = np.flatnonzero(np.abs(v).reshape(n_rows, -1).max(axis=1) > 1e-12 * max(float(np.abs(v).max()), 1e-300))
-        layout = _region_layout(pm, faces_of_rows[rows], mesh.name)
+        layout = region_layout(pm, faces_of_rows[rows], mesh.name)
         offset = GRAPH_SPACING * np.array([k % cols, -(k // cols)], dtype=float)
         peak = float(v[rows].max()) or 1.0
         corners = np.array([[layout[x] for x in pm.face(int(f)).tolist()] for f in faces_of_rows[rows]])  # (r, 4, 2)

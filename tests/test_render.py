@@ -21,7 +21,7 @@ from export.render import (
     style,
     zebra_parameter,
 )
-from export.render_blending import _region_layout, iso_levels, iso_segments
+from export.render_blending import region_layout, iso_levels, iso_segments
 from export.render_geometry import sample_patches
 from patching.surface import PatchGroup
 from tests.conftest import REPO
@@ -191,7 +191,7 @@ def test_the_graph_layout_of_a_support_is_a_planar_embedding():
         mine = rows[(rows >= g.row_offset) & (rows < g.row_offset + g.n_rows)]
         support |= set(faces_of_rows[s0 + (mine - g.row_offset) // (g.degree + 1) ** 2].tolist())
     faces = np.array(sorted(support))
-    layout = _region_layout(mesh, faces, mesh.name)
+    layout = region_layout(mesh, faces, mesh.name)
     assert np.allclose(np.linalg.norm(layout[ep]), 0.0, atol=0.35)  # the EP near the middle
     for f in faces.tolist():  # every face keeps its orientation: no fold in the layout
         q = np.array([layout[v] for v in mesh.face(f).tolist()])
