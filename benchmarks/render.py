@@ -54,7 +54,7 @@ def picture(name: str, mode: str, size: tuple[int, int], out: Path) -> dict:
     m = grid_size(surface, pixel)
     sampled = sample_surface(surface, pixel, m=m)
     if mode == "blending":
-        sampled = surface_field(operator, sampled, control_points("ep", mesh, operator), m, "EPs")
+        sampled = surface_field(operator, surface, sampled, control_points("ep", mesh, operator), m, "EPs")
     sample = since(t)
     t = clocks()
     used = render(sampled, out / f"{name}_{mode}.png", mode, size, picture=pic)

@@ -165,7 +165,7 @@ def run(args: argparse.Namespace, options, size: tuple[int, int], progress) -> i
             if args.graph:
                 sampled = graph_sampled(operator, mesh, columns, min(m, 33), label)
             else:
-                sampled = surface_field(operator, sample_surface(surface, pixel, lines, m), columns, m, label)
+                sampled = surface_field(operator, surface, sample_surface(surface, pixel, lines, m), columns, m, label)
         else:
             sampled = sample_surface(surface, pixel, lines, m)
     return _draw(sampled, out, mode, size, args, picture, progress, start)

@@ -46,6 +46,8 @@ __all__ = ["control_points", "graph_sampled", "iso_levels", "iso_segments", "reg
 
 #: Height of the graph's peak, the layout being the unit disc.
 GRAPH_HEIGHT = 0.7
+#: Samples a patch side of the search for the maxima on the surface (``blending_maxima``'s).
+SEARCH_SAMPLES = 17
 #: Graphs side by side (``ep``): centre spacing in layout units.
 GRAPH_SPACING = 2.5
 
@@ -104,39 +106,46 @@ def iso_segments(points: np.ndarray, triangles: np.ndarray, values: np.ndarray, 
     return np.concatenate(out) if out else np.zeros((0, 2, 3))
 
 
-def _maxima(operator, columns: np.ndarray, m: int, rows: np.ndarray, flat_points: np.ndarray, row_index: np.ndarray) -> np.ndarray:
-    """(k, c) rows of ``flat_points`` at the local maxima of every column's function (module
-    docstring); flat_points: (v, c) per vertex of the picture's patch grids of ``rows``
-    (positions, or positions and normals; row_index: each row's place among those patches)."""
+def _maxima(operator, columns: np.ndarray, m: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(patch rows, s, t) of the local maxima of every column's function (module docstring),
+    searched on m x m grids of the patches ``rows`` (which must cover the supports)."""
+    none = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     try:
         graph = sample_graph(operator, rows, m)
     except UnsupportedError as exc:  # T-junctions: no joined grid to judge maxima across edges
         warnings.warn(NupatchWarning(f"local maxima not marked: {exc}"))
-        return np.zeros((0, flat_points.shape[1]))
+        return none
     values, _ = node_values(graph, column_values(operator, columns, rows, m))
-    flat_node = graph.node.ravel()
-    _, first = np.unique(flat_node, return_index=True)  # a sample of every node
-    found = []
-    for k, c in enumerate(columns.tolist()):
-        nodes, _ = blending_maxima_nodes(operator, graph, c, values[:, k])
-        sample = first[nodes]
-        p, rest = np.divmod(sample, m * m)
-        found.append(flat_points[row_index[p] * m * m + rest])
-    return np.concatenate(found) if found else np.zeros((0, flat_points.shape[1]))
+    _, first = np.unique(graph.node.ravel(), return_index=True)  # a sample of every node
+    found = [first[blending_maxima_nodes(operator, graph, c, values[:, k])[0]] for k, c in enumerate(columns.tolist())]
+    if not found:
+        return none
+    p, rest = np.divmod(np.concatenate(found), m * m)
+    a, b = np.divmod(rest, m)
+    return rows[p], a / (m - 1), b / (m - 1)
 
 
-def surface_field(operator, sampled: Sampled, columns: np.ndarray, m: int, label: str) -> Sampled:
-    """``sampled`` (``render.sample_surface`` of the operator's surface with m samples a side)
-    with the field of the blending functions of ``columns`` (module docstring)."""
+def surface_field(operator, surface, sampled: Sampled, columns: np.ndarray, m: int, label: str) -> Sampled:
+    """``sampled`` (``render.sample_surface`` of ``surface``, the operator's, with m samples a
+    side) with the field of the blending functions of ``columns`` (module docstring); their
+    maxima searched on ``SEARCH_SAMPLES`` a side, as ``blending_maxima`` does, and placed on
+    the patches."""
+    from dataclasses import replace
+
+    from patching.bernstein import evaluate_pairs
+    from patching.toolpath.geometry import common_nets
+
     rows = np.arange(sum(len(g.faces) for g in operator.groups), dtype=np.int64)
     values = column_values(operator, columns, rows, m)  # (p, m, m, k)
     field_values = values.max(axis=-1).reshape(-1)
     touched = rows[np.abs(values).reshape(len(rows), -1).max(axis=1) > 0]  # the supports
-    both = _maxima(operator, columns, m, touched, np.concatenate([sampled.points, sampled.normals], axis=1), touched)
+    r, s, t = _maxima(operator, columns, min(m, SEARCH_SAMPLES), touched)
+    _, nets, _ = common_nets(surface)
+    points, ds, dt = evaluate_pairs(nets[r], s, t, derivatives=True)
+    normals = np.cross(ds, dt)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     peak = float(field_values.max())
-    from dataclasses import replace
-
-    field = Field(field_values, label, "", both[:, :3], iso_levels(peak), range=(0.0, peak), marker_normals=both[:, 3:])
+    field = Field(field_values, label, "", points, iso_levels(peak), range=(0.0, peak), marker_normals=normals)
     return replace(sampled, field=field)
 
 
@@ -227,7 +236,9 @@ def graph_sampled(operator, mesh, columns: np.ndarray, m: int, label: str) -> Sa
         grid = pts.reshape(len(rows), m, m, 3)  # the faces' sides, lifted onto the graph
         sides = [grid[:, :, 0], grid[:, -1, :], grid[:, :, -1], grid[:, 0, :]]
         lines.append(np.concatenate([np.stack([x[:, :-1], x[:, 1:]], axis=2).reshape(-1, 2, 3) for x in sides]))
-        markers.append(_maxima(operator, np.array([c]), m, rows, pts, np.arange(len(rows))))
+        r, s_, t_ = _maxima(operator, np.array([c]), m, rows)  # on the graph's own grid
+        local = np.searchsorted(rows, r)
+        markers.append(pts[local * m * m + np.rint(s_ * (m - 1)).astype(int) * m + np.rint(t_ * (m - 1)).astype(int)])
         base += len(pts)
     points = np.concatenate(points)
     triangles = np.concatenate(tri)

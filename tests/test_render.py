@@ -273,7 +273,7 @@ def test_blending_functions_mark_their_maxima_and_the_sheet_has_four_views(tmp_p
     surface = operator.evaluate(mesh.vertices)
     columns = control_points("ep", mesh, operator)
     m = 9
-    sampled = surface_field(operator, sample_surface(surface, 1.0, m=m), columns, m, "EPs")
+    sampled = surface_field(operator, surface, sample_surface(surface, 1.0, m=m), columns, m, "EPs")
     # one maximum a function ([FSLYJ]'s aim, kept on this mesh), marked at its highest sample
     assert len(sampled.field.markers) == len(columns)
     from patching.evaluation.sampling import column_values
