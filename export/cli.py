@@ -301,69 +301,9 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    import numpy as np
+    from export.cli_render import run
 
-    from export.atomic import atomic_output
-    from export.render import render, sample_shape
-    from export.tolerances import RENDER_RELATIVE
-
-    source = Path(args.source)
-    out = Path(args.output) if args.output else source.with_suffix(".png")
-    if out.resolve() == source.resolve():
-        raise NupatchError("the output would overwrite the input", str(out))
-    if out.suffix.lower() != ".png" and str(out) != "-":
-        raise NupatchError("render writes PNG images: OUT must end in .png", str(out))
-    size = _size(args.size)
-    if args.tolerance is not None:
-        from export.tolerances import check_tolerance
-
-        check_tolerance(args.tolerance)
-    check_output_path(out)
-    start = time.perf_counter()
-    if source.suffix.lower() in (".step", ".stp"):
-        from export.step import read_step
-
-        _require_step(source)
-        shape = read_step(source)
-        lines = None  # the faces' boundary edges
-        tolerance = args.tolerance or RENDER_RELATIVE * _diagonal(shape)
-        from export.budget import check_shape_budget
-
-        check_shape_budget(shape, tolerance)  # before BRepMesh, as for a mesh
-    else:
-        from export.brep import to_shape
-
-        from export.inputs import read_control_mesh
-
-        mesh = read_control_mesh(source, args.intervals)
-        surface = patching.build(mesh, _options(args))
-        shape = to_shape(surface)
-        lines = None
-        if args.mesh:
-            edges = patching.Topology(mesh).edges
-            lines = mesh.vertices[np.asarray(edges)]
-        tolerance = args.tolerance or RENDER_RELATIVE * surface.size
-        from export.budget import check_tessellation_budget
-
-        check_tessellation_budget(surface, tolerance)
-    mode = "zebra" if args.zebra else (args.curvature or "shaded")
-    sampled = sample_shape(shape, tolerance, lines)
-    with atomic_output(out) as tmp:
-        used = render(sampled, tmp, mode, size, overlay=args.mesh, renderer=args.renderer)
-    _progress(args, f"drew {out} ({mode}, {size[0]}x{size[1]}, {used}) in {time.perf_counter() - start:.2f} s")
-    return 0
-
-
-def _diagonal(shape) -> float:
-    from export.continuity import shape_diagonal as diagonal
-
-    return diagonal(shape) or 1.0
-
-
-def _require_step(path: Path) -> None:
-    from export.step_check import require_step_header  # a regular file with the STEP header
-
-    require_step_header(path)
+    return run(args, _options(args), _size(args.size), lambda message: _progress(args, message))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -478,20 +418,10 @@ def _parser() -> argparse.ArgumentParser:
 
     _add_toolpath(sub)
 
-    p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature")
-    p.add_argument("source", metavar="MESH|STEP", help="control mesh (OBJ) or STEP file")
-    p.add_argument("-o", "--output", metavar="OUT.png", help="image (default: the source with .png)")
-    look = p.add_mutually_exclusive_group()
-    look.add_argument("--zebra", action="store_true", help="zebra stripes (reflection lines)")
-    look.add_argument(
-        "--curvature", nargs="?", const="mean", choices=("mean", "gaussian"),
-        help="curvature colour map with a legend: mean (default) or gaussian",
-    )
-    p.add_argument("--mesh", action="store_true", help="overlay the control mesh (MESH) or the faces' edges (STEP)")
-    p.add_argument("--size", default="800x600", metavar="WxH", help="image size in pixels (default 800x600)")
-    p.add_argument("--tolerance", type=float, metavar="T", help="tessellation deflection (default: 2e-3 of the size)")
-    p.add_argument("--renderer", choices=("auto", "vtk", "matplotlib"), default="auto",
-                   help="VTK off-screen, or matplotlib Agg (auto: VTK, matplotlib if VTK has no context)")
+    p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature, blending functions")
+    from export.cli_render import add_arguments as _render_arguments
+
+    _render_arguments(p)
     _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     add_intervals_argument(p)

@@ -1,28 +1,29 @@
-"""Pictures of a surface, headless: shaded, zebra stripes, curvature with a legend.
+"""Pictures of a surface a CAD user can read, headless: shaded, zebra stripes, curvature maps
+with a legend beside the model, and blending functions.
 
-Renderer: VTK (9.x, installed with cadquery-ocp), off-screen.  On a machine without a display
-VTK's render-window factory falls back from X to EGL; we silence its warning about X.  VTK is
-the well-kept choice here: it is already in the environment (no new dependency), renders
-smooth-shaded triangles with per-pixel interpolated scalars (crisp zebra stripes from a banded
-lookup table) and has a scalar bar for the legend.  If VTK cannot open any off-screen context
-(``RuntimeError``), matplotlib's Agg backend draws the same triangles and colours (flat-shaded,
-slower, and with its painter's-algorithm depth sorting): ``renderer="matplotlib"`` forces it.
+What is drawn.  A mesh's surface is sampled on the exact patches (``export.render_geometry``:
+one m x m grid a patch, m from the picture's pixel size, curvatures from the patches' second
+derivatives); a STEP file is sampled with OpenCASCADE (``sample_shape``: ``BRepMesh`` nodes,
+deflection one pixel, and ``GeomLProp_SLProps`` at each node's (u, v)).
 
-What is drawn is sampled with OpenCASCADE on the B-rep, whatever the source (a STEP file, or a
-mesh built by nupatch): ``BRepMesh_IncrementalMesh`` nodes, and at each node's (u, v) the face
-surface's point, unit normal, mean and Gaussian curvature (``GeomLProp_SLProps``), with
-normals flipped on REVERSED faces.
-
-- Zebra: the view direction v (parallel projection) reflected in the normal,
-  r = v - 2 (v . n) n; the stripe parameter is phi = asin(r . right), the reflected ray's
-  elevation out of the plane (v, up), drawn as ``ZEBRA_STRIPES`` black and white bands over
-  [-pi/2, pi/2]: the reflection of a field of light lines at infinity parallel to the camera's
-  up axis, as in CAD systems' zebra analysis.  A stripe breaks across a normal jump (a G1
-  defect) and kinks across a curvature jump (G1 but not G2).  asin rather than an angle around
-  the up axis: no wrap-around seam, so no aliasing where r points away from the light lines.
-- Curvature: mean H = (k1 + k2) / 2 or Gaussian K = k1 k2, a diverging map centred on 0 and
-  clipped at the 2nd and 98th percentiles of |value|, with a legend.
-- Mesh: the control mesh's edges (mesh input) or the faces' boundary edges (STEP input) on top.
+- Zebra (reflection lines): a point p with unit normal n is seen along the ray
+  v = (p - e) / |p - e| from an eye e one model diagonal in front of the model (a finite eye:
+  a flat face shows straight stripes instead of one flat colour), reflected to
+  r = v - 2 (v . n) n; the stripe parameter phi = asin(r . w) in [-pi/2, pi/2] is the
+  reflected ray's angle out of the plane of the light lines, w the screen axis across them
+  (``--stripe-direction``), and ``stripes`` dark and as many light bands cut [-pi/2, pi/2]:
+  light lines at infinity, as in CAD systems' zebra analysis.  phi is continuous where n is:
+  a stripe breaks across a normal jump (G0 only) and kinks across a curvature jump (G1, not
+  G2).  asin rather than an angle around an axis: no wrap-around seam.  The bands are shaded
+  (diffuse light from the eye) so the shape reads under them; edges are anti-aliased by
+  supersampling (the image drawn ``supersample`` times larger and averaged down; above 4
+  megapixels only VTK's multisampling, which smooths triangle edges, not stripe edges).
+- Curvature: mean H, Gaussian K, principal k1 >= k2 (``render_geometry``'s signs: convex > 0)
+  or max(|k1|, |k2|); the colour range is the 2nd to 98th percentile of the values weighted
+  by area (or ``--range``), symmetric about 0 in a diverging map for the signed ones; values
+  beyond it take the end colours (the legend's arrows).  The legend is a strip of its own
+  beside the model (``export.render_legend``), units 1/mm and 1/mm^2 (model units as mm).
+- Blending functions: ``export.render_blending``.
 """
 
 from __future__ import annotations
@@ -36,44 +37,137 @@ import numpy as np
 
 from patching.errors import NupatchError
 
-__all__ = ["MODES", "Sampled", "sample_shape", "render"]
+from .render_camera import SHEET, VIEWS, Camera, fit, sheet_viewports
+from .render_scene import (
+    ZEBRA_DARK,
+    ZEBRA_LIGHT,
+    Field,
+    Sampled,
+    Style,
+    ViewLayer,
+    write_png,
+)
 
-MODES = ("shaded", "zebra", "mean", "gaussian")
-ZEBRA_STRIPES = 16
-#: Camera: looking down at the model from azimuth 35 deg, elevation 30 deg.
-AZIMUTH, ELEVATION = 35.0, 30.0
+__all__ = [
+    "CURVATURES",
+    "MODES",
+    "Field",
+    "Picture",
+    "Sampled",
+    "Style",
+    "ViewLayer",
+    "cameras",
+    "legend_width",
+    "mode_values",
+    "picture_pixel",
+    "render",
+    "robust_range",
+    "sample_shape",
+    "sample_surface",
+    "style",
+    "supersample_factor",
+    "write_png",
+    "zebra_parameter",
+    "zebra_values",
+]
+
+MODES = ("shaded", "zebra", "mean", "gaussian", "k1", "k2", "max-abs", "blending")
+#: Curvature modes: (legend title, unit, diverging about 0).
+CURVATURES = {
+    "mean": ("mean curvature H", "1/mm", True),
+    "gaussian": ("Gaussian curvature K", "1/mm²", True),
+    "k1": ("largest principal curvature k1", "1/mm", True),
+    "k2": ("smallest principal curvature k2", "1/mm", True),
+    "max-abs": ("max(|k1|, |k2|)", "1/mm", False),
+}
 
 
 @dataclass(frozen=True)
-class Sampled:
-    """Triangles with per-vertex geometry: points (v, 3), normals (v, 3) unit outward,
-    mean and gaussian (v,) curvatures, triangles (t, 3) int64, lines (l, 2, 3) overlay segments."""
+class Picture:
+    """How a picture looks: view (a name of ``render_camera.VIEWS``), azimuth / elevation
+    (degrees, override the view's), views (1, or 4 for the sheet), stripes (dark bands of the
+    zebra), stripe_direction (degrees from vertical light lines), edges (draw the patch edges),
+    value_range (colour range, else robust), supersample (None: automatic)."""
 
-    points: np.ndarray
-    normals: np.ndarray
-    mean: np.ndarray
-    gaussian: np.ndarray
-    triangles: np.ndarray
-    lines: np.ndarray
+    view: str = "iso"
+    azimuth: float | None = None
+    elevation: float | None = None
+    views: int = 1
+    stripes: int = 32
+    stripe_direction: float = 0.0
+    edges: bool = False
+    value_range: tuple[float, float] | None = None
+    supersample: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.view not in VIEWS:
+            raise NupatchError(f"--view {self.view}: not one of {', '.join(VIEWS)}", "command line")
+        if self.views not in (1, 4):
+            raise NupatchError(f"--views {self.views}: 1 or 4", "command line")
+        if not 1 <= self.stripes <= 500:
+            raise NupatchError(f"--stripes {self.stripes}: 1 to 500", "command line")
+        for name, x in (("--azimuth", self.azimuth), ("--elevation", self.elevation), ("--stripe-direction", self.stripe_direction)):
+            if x is not None and not math.isfinite(x):
+                raise NupatchError(f"{name} must be a finite number of degrees, not {x}", "command line")
+        if self.elevation is not None and abs(self.elevation) > 90:
+            raise NupatchError(f"--elevation {self.elevation:g}: -90 to 90 degrees", "command line")
+        if self.value_range is not None:
+            lo, hi = self.value_range
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise NupatchError(f"--range {lo:g} {hi:g}: need finite LO < HI", "command line")
+        if self.supersample is not None and not 1 <= self.supersample <= 4:
+            raise NupatchError(f"supersample {self.supersample}: 1 to 4", "command line")
+
+    def directions(self) -> list[tuple[float, float, str]]:
+        """(azimuth, elevation, label) of every view drawn."""
+        if self.views == 4:
+            return [(*VIEWS[name], name) for name in SHEET]
+        az, el = VIEWS[self.view]
+        az = az if self.azimuth is None else self.azimuth
+        el = el if self.elevation is None else self.elevation
+        return [(az, el, "")]
+
+
+# -- sampling -------------------------------------------------------------------------------
+
+
+def sample_surface(surface, pixel: float, lines: np.ndarray | None = None, m: int | None = None) -> Sampled:
+    """The patches of a BezierSurface sampled for a picture whose pixel is ``pixel`` model
+    units (``render_geometry``); lines: overlay segments (the control mesh), default none.
+    m: samples per patch side (default from the pixel)."""
+    from .render_geometry import grid_size, grid_triangles, sample_patches
+
+    m = grid_size(surface, pixel) if m is None else int(m)
+    s = sample_patches(surface, m)
+    p = len(s.faces)
+
+    def flat(a: np.ndarray) -> np.ndarray:
+        return a.reshape(p * m * m, *a.shape[3:])
+
+    return Sampled(
+        flat(s.points), flat(s.normals), flat(s.mean), flat(s.gaussian), grid_triangles(p, m),
+        np.zeros((0, 2, 3)) if lines is None else np.asarray(lines, dtype=float).reshape(-1, 2, 3),
+        k1=flat(s.k1), k2=flat(s.k2), weights=flat(s.area), edges=s.edge_lines(), edge_normals=s.edge_normals(),
+    )
 
 
 def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sampled:
     """Tessellate ``shape`` (linear deflection ``tolerance``) and evaluate each face's surface
     at its nodes (module docstring).  ``lines``: (l, 2, 3) segments to overlay; default the
-    faces' boundary edges."""
+    faces' boundary edges (also the ``edges``)."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.GeomLProp import GeomLProp_SLProps
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp
     from OCP.TopLoc import TopLoc_Location
-    from .ocp_compat import TopoDS
-    from .ocp_compat import TopTools_IndexedMapOfShape
 
-    BRepMesh_IncrementalMesh(shape, float(tolerance), False, 0.3, False)
+    from .ocp_compat import TopoDS, TopTools_IndexedMapOfShape
+
+    BRepMesh_IncrementalMesh(shape, float(tolerance), False, 0.1, False)
     faces = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_FACE, faces)
-    points, normals, mean, gauss, tris = [], [], [], [], []
+    rows, tris = [], []
     base = 0
     for i in range(1, faces.Extent() + 1):
         face = TopoDS.Face_s(faces.FindKey(i))
@@ -87,18 +181,17 @@ def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sa
         for k in range(1, poly.NbNodes() + 1):
             u, v = poly.UVNode(k).Coord()
             props.SetParameters(u, v)
-            points.append(props.Value().Coord())
-            if props.IsNormalDefined():
-                normals.append(tuple(sign * c for c in props.Normal().Coord()))
-            else:
-                normals.append((0.0, 0.0, 0.0))
+            row = list(props.Value().Coord())
+            row += [sign * c for c in props.Normal().Coord()] if props.IsNormalDefined() else [0.0, 0.0, 0.0]
             if props.IsCurvatureDefined():
-                # Curvatures follow the surface's own normal: flip H with the face.
-                mean.append(sign * props.MeanCurvature())
-                gauss.append(props.GaussianCurvature())
+                # OpenCASCADE's curvatures follow the surface's own normal, positive where the
+                # surface bends towards it: flip to "convex > 0" about the outward normal.
+                big, small = props.MaxCurvature(), props.MinCurvature()
+                k1, k2 = sorted((-sign * big, -sign * small), reverse=True)
+                row += [-sign * props.MeanCurvature(), props.GaussianCurvature(), k1, k2]
             else:
-                mean.append(0.0)
-                gauss.append(0.0)
+                row += [np.nan] * 4
+            rows.append(row)
         t = np.array([poly.Triangle(k).Get() for k in range(1, poly.NbTriangles() + 1)], dtype=np.int64) - 1
         if sign < 0:
             t = t[:, ::-1]
@@ -106,231 +199,236 @@ def sample_shape(shape, tolerance: float, lines: np.ndarray | None = None) -> Sa
         base += poly.NbNodes()
     if not tris:
         raise NupatchError("nothing to draw: the shape has no faces", "render")
-    if lines is None:
-        from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
 
-        edges = TopTools_IndexedMapOfShape()
-        TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
-        segments = []
-        for i in range(1, edges.Extent() + 1):
-            edge = TopoDS.Edge_s(edges.FindKey(i))
-            if BRep_Tool.Degenerated_s(edge):
-                continue
-            curve = BRepAdaptor_Curve(edge)
-            w = np.linspace(curve.FirstParameter(), curve.LastParameter(), 9)
-            p = np.array([curve.Value(float(x)).Coord() for x in w])
-            segments.append(np.stack([p[:-1], p[1:]], axis=1))
-        lines = np.concatenate(segments) if segments else np.zeros((0, 2, 3))
+    edges = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_EDGE, edges)
+    segments = []
+    for i in range(1, edges.Extent() + 1):
+        edge = TopoDS.Edge_s(edges.FindKey(i))
+        if BRep_Tool.Degenerated_s(edge):
+            continue
+        curve = BRepAdaptor_Curve(edge)
+        w = np.linspace(curve.FirstParameter(), curve.LastParameter(), 17)
+        p = np.array([curve.Value(float(x)).Coord() for x in w])
+        segments.append(np.stack([p[:-1], p[1:]], axis=1))
+    face_edges = np.concatenate(segments) if segments else np.zeros((0, 2, 3))
+    data = np.array(rows, dtype=float)
+    triangles = np.concatenate(tris)
     return Sampled(
-        np.array(points, dtype=float),
-        np.array(normals, dtype=float),
-        np.array(mean, dtype=float),
-        np.array(gauss, dtype=float),
-        np.concatenate(tris),
-        np.asarray(lines, dtype=float).reshape(-1, 2, 3),
+        data[:, :3], data[:, 3:6], data[:, 6], data[:, 7], triangles,
+        face_edges if lines is None else np.asarray(lines, dtype=float).reshape(-1, 2, 3),
+        k1=data[:, 8], k2=data[:, 9], weights=_vertex_areas(data[:, :3], triangles), edges=face_edges,
     )
 
 
-def _camera(points: np.ndarray):
-    """(view direction v (from the eye), up, right) of the fixed camera."""
-    az, el = math.radians(AZIMUTH), math.radians(ELEVATION)
-    to_eye = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    view = -to_eye
-    up = np.array([0.0, 0.0, 1.0]) - math.sin(el) * to_eye
-    up /= np.linalg.norm(up)
+def _vertex_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """A third of the area of the triangles at each vertex (weights of statistics)."""
+    a = 0.5 * np.linalg.norm(np.cross(points[triangles[:, 1]] - points[triangles[:, 0]], points[triangles[:, 2]] - points[triangles[:, 0]]), axis=1)
+    return np.bincount(triangles.ravel(), np.repeat(a / 3.0, 3), minlength=len(points))
+
+
+# -- cameras, zebra, colour ranges ---------------------------------------------------------
+
+
+def legend_width(size: tuple[int, int]) -> int:
+    """Pixels of the legend strip at the right of an image of ``size``."""
+    return int(np.clip(0.17 * size[0], 110, 300))
+
+
+def cameras(points: np.ndarray, size: tuple[int, int], picture: Picture, legend: bool) -> list[Camera]:
+    """The cameras of the picture's views, fitted to ``points`` in the model area (the image
+    less the legend strip)."""
+    width = size[0] - (legend_width(size) if legend else 0)
+    ports = sheet_viewports((width, size[1]), picture.views)
+    return [fit(points, az, el, port, label) for (az, el, label), port in zip(picture.directions(), ports)]
+
+
+def picture_pixel(points: np.ndarray, size: tuple[int, int], picture: Picture, legend: bool) -> float:
+    """Model units per pixel of the picture's finest view (the tessellation follows it)."""
+    return min(c.pixel for c in cameras(points, size, picture, legend))
+
+
+def zebra_parameter(normals: np.ndarray, view: np.ndarray, up: np.ndarray, angle: float = 0.0) -> np.ndarray:
+    """phi = asin(r . w) in [-pi/2, pi/2] of the view rays ``view`` ((3,) or (n, 3), unit)
+    reflected in the normals, w = cos(angle) right + sin(angle) up, right = view x up (module
+    docstring)."""
+    view = np.broadcast_to(np.asarray(view, dtype=float), normals.shape)
+    r = view - 2.0 * np.einsum("ij,ij->i", view, normals)[:, None] * normals
     right = np.cross(view, up)
-    return view, up, right
+    right /= np.linalg.norm(right, axis=-1, keepdims=True)
+    a = math.radians(angle)
+    w = math.cos(a) * right + math.sin(a) * np.asarray(up, dtype=float)
+    return np.arcsin(np.clip(np.einsum("ij,ij->i", r, w), -1.0, 1.0))
 
 
-def zebra_parameter(normals: np.ndarray, view: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """asin(r . right) in [-pi/2, pi/2] of the reflected view ray r (module docstring)."""
-    r = view - 2.0 * (normals @ view)[:, None] * normals
-    right = np.cross(view, up)
-    return np.arcsin(np.clip(r @ right, -1.0, 1.0))
+def zebra_values(sampled: Sampled, camera: Camera, picture: Picture) -> np.ndarray:
+    """The zebra parameter of every vertex seen by ``camera`` (rays from its eye)."""
+    rays = sampled.points - camera.eye
+    rays /= np.maximum(np.linalg.norm(rays, axis=1, keepdims=True), 1e-300)
+    return zebra_parameter(sampled.normals, rays, camera.up, picture.stripe_direction)
 
 
-def _scalars(sampled: Sampled, mode: str):
-    """(values or None, (lo, hi), title) for a mode."""
+def robust_range(values: np.ndarray, weights: np.ndarray | None = None, percentiles=(2.0, 98.0),
+                 diverging: bool = True) -> tuple[float, float]:
+    """The colour range: the weighted ``percentiles`` of the finite values; for a diverging map
+    symmetric about 0 (+-the larger of the two magnitudes), else from 0 up (non-negative
+    values) or between the two percentiles."""
+    values = np.asarray(values, dtype=float)
+    ok = np.isfinite(values)
+    if weights is not None:
+        ok &= np.isfinite(weights) & (weights > 0)
+    v = values[ok]
+    if v.size == 0:
+        return (-1.0, 1.0) if diverging else (0.0, 1.0)
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float)[ok]
+    order = np.argsort(v)
+    cumulative = np.cumsum(w[order])
+    cumulative /= cumulative[-1]
+    lo, hi = (float(v[order][min(np.searchsorted(cumulative, q / 100.0), v.size - 1)]) for q in percentiles)
+    scale = max(abs(lo), abs(hi), float(np.abs(v).max()) * 1e-12, 1e-300)
+    if diverging:
+        top = max(abs(lo), abs(hi))
+        top = top if top > 1e-9 * scale and top > 0 else (float(np.abs(v).max()) or 1.0)
+        return -top, top
+    if lo >= 0:
+        lo = 0.0
+    if hi <= lo:
+        hi = lo + (scale if scale > 1e-300 else 1.0)
+    return lo, hi
+
+
+def _colour_table(name: str, n: int = 256) -> np.ndarray:
+    import matplotlib
+
+    return np.asarray(matplotlib.colormaps[name](np.linspace(0.0, 1.0, n)))[:, :3]
+
+
+def _extend(values: np.ndarray, lo: float, hi: float) -> str:
+    v = values[np.isfinite(values)]
+    below, above = bool((v < lo).any()), bool((v > hi).any())
+    return {(False, False): "neither", (True, False): "min", (False, True): "max", (True, True): "both"}[(below, above)]
+
+
+def mode_values(sampled: Sampled, mode: str) -> np.ndarray:
+    """Per-vertex scalar of a curvature or blending mode."""
+    if mode == "blending":
+        if sampled.field is None:
+            raise ValueError("mode 'blending' needs sampled.field")
+        return sampled.field.values
+    if mode in ("k1", "k2", "max-abs") and sampled.k1 is None:
+        raise NupatchError(f"--curvature {mode} needs principal curvatures, which this sampling lacks", "render")
+    if mode == "max-abs":
+        return np.maximum(np.abs(sampled.k1), np.abs(sampled.k2))
+    return {"mean": sampled.mean, "gaussian": sampled.gaussian, "k1": sampled.k1, "k2": sampled.k2}[mode]
+
+
+def style(sampled: Sampled, mode: str, picture: Picture) -> Style:
+    """The colouring of a mode (module docstring)."""
     if mode == "shaded":
-        return None, (0.0, 1.0), ""
+        return Style(None, (0.0, 1.0), None, "neither", (0.25, 0.75, 0.35))
     if mode == "zebra":
-        view, up, _ = _camera(sampled.points)
-        return zebra_parameter(sampled.normals, view, up), (-math.pi / 2, math.pi / 2), ""
-    values = sampled.mean if mode == "mean" else sampled.gaussian
-    finite = np.abs(values[np.isfinite(values)])
-    top = float(np.percentile(finite, 98)) if finite.size else 1.0
-    top = top if top > 0 else 1.0
-    title = "mean curvature H" if mode == "mean" else "Gaussian curvature K"
-    return np.clip(np.nan_to_num(values), -top, top), (-top, top), title
+        n = 2 * picture.stripes
+        table = np.where((np.arange(n) % 2 == 0)[:, None], ZEBRA_LIGHT, ZEBRA_DARK) * np.ones((1, 3))
+        return Style(table, (-math.pi / 2, math.pi / 2), None, "neither", (0.5, 0.5, 0.0))
+    values = mode_values(sampled, mode)
+    if mode == "blending":
+        f = sampled.field
+        lo, hi = picture.value_range or f.range or robust_range(values, None, (0.0, 100.0), diverging=False)
+        note = "iso-lines: " + ", ".join(f"{x:g}" for x in f.levels) if f.levels else ""
+        return Style(_colour_table("viridis"), (lo, hi), (f.title, f.unit, note), _extend(values, lo, hi), (0.45, 0.55, 0.15), "viridis")
+    title, unit, diverging = CURVATURES[mode]
+    if picture.value_range is not None:
+        (lo, hi), note = picture.value_range, "range as given"
+    else:
+        (lo, hi), note = robust_range(values, sampled.weights, diverging=diverging), "range: 2nd-98th percentile"
+    name = "RdBu_r" if diverging else "viridis"
+    return Style(_colour_table(name), (lo, hi), (title, unit, note), _extend(values, lo, hi), (0.45, 0.55, 0.15), name)
+
+
+# -- drawing --------------------------------------------------------------------------------
+
+
+def _layers(sampled: Sampled, mode: str, picture: Picture, overlay: bool, legend: bool, size) -> list[ViewLayer]:
+    out = []
+    for cam in cameras(sampled.points, size, picture, legend):
+        if mode == "zebra":
+            scalars = zebra_values(sampled, cam, picture)
+        elif mode == "shaded":
+            scalars = None
+        else:
+            scalars = np.nan_to_num(mode_values(sampled, mode))
+        groups = []  # (segments, colour, width)
+        if mode == "blending" and sampled.field is not None:
+            from .render_blending import iso_segments
+
+            levels = sampled.field.levels
+            if levels:
+                groups.append((iso_segments(sampled.points, sampled.triangles, sampled.field.values, levels), (0.05, 0.05, 0.05), 1.0))
+            if len(sampled.field.lines):
+                groups.append((sampled.field.lines, (0.35, 0.35, 0.35), 1.0))
+        if picture.edges and sampled.edges is not None and len(sampled.edges):
+            groups.append((sampled.edges, (0.85, 0.2, 0.1) if mode == "zebra" else (0.15, 0.15, 0.15), 1.0))
+        if overlay and len(sampled.lines):
+            groups.append((sampled.lines, (0.1, 0.1, 0.1), 1.5))
+        if groups:
+            lines = np.concatenate([g[0] for g in groups])
+            colours = np.concatenate([np.tile(g[1], (len(g[0]), 1)) for g in groups])
+            widths = np.concatenate([np.full(len(g[0]), g[2]) for g in groups])
+        else:
+            lines, colours, widths = np.zeros((0, 2, 3)), np.zeros((0, 3)), np.zeros(0)
+        markers = np.zeros((0, 3))
+        if mode == "blending" and sampled.field is not None:
+            markers = sampled.field.markers
+            if sampled.field.marker_normals is not None:  # hidden behind the part: not drawn
+                markers = markers[sampled.field.marker_normals @ cam.view < -0.05]
+        out.append(ViewLayer(cam, scalars, lines, colours, widths, markers))
+    return out
+
+
+def supersample_factor(size: tuple[int, int], picture: Picture) -> int:
+    """Automatic supersampling: 3 up to 1 megapixel, 2 up to 4, then 1 (VTK multisamples then)."""
+    if picture.supersample is not None:
+        return picture.supersample
+    pixels = size[0] * size[1]
+    return 3 if pixels <= 1_000_000 else 2 if pixels <= 4_000_000 else 1
 
 
 def render(sampled: Sampled, path: str | os.PathLike, mode: str = "shaded", size: tuple[int, int] = (800, 600),
-           overlay: bool = False, renderer: str = "auto") -> str:
+           overlay: bool = False, renderer: str = "auto", picture: Picture | None = None) -> str:
     """Draw ``sampled`` to the PNG ``path`` (written by the caller's atomic wrapper: pass the
-    temporary path); returns the renderer used, "vtk" or "matplotlib"."""
+    temporary path); returns the renderer used, "vtk" or "matplotlib".  overlay: draw
+    ``sampled.lines`` (the control mesh)."""
     if mode not in MODES:
         raise ValueError(f"mode {mode!r} not in {MODES}")
+    picture = picture or Picture()
+    try:
+        import matplotlib  # noqa: F401  (colour tables, legend, fallback)
+    except ImportError:
+        raise NupatchError("pictures need matplotlib: pip install 'nupatch[render]'", "render") from None
+    look = style(sampled, mode, picture)
+    legend = look.legend is not None
+    layers = _layers(sampled, mode, picture, overlay, legend, size)
+    width = size[0] - (legend_width(size) if legend else 0)
+    factor = supersample_factor(size, picture)
+    image, used = None, "matplotlib"
     if renderer in ("auto", "vtk"):
+        from .render_vtk import draw as draw_vtk
+
         try:
-            _render_vtk(sampled, Path(path), mode, size, overlay)
-            return "vtk"
+            image, used = draw_vtk(sampled, layers, look, (width, size[1]), factor), "vtk"
         except RuntimeError:
             if renderer == "vtk":
                 raise
-    _render_matplotlib(sampled, Path(path), mode, size, overlay)
-    return "matplotlib"
+    if image is None:
+        from .render_mpl import draw as draw_mpl
 
+        image = draw_mpl(sampled, layers, look, (width, size[1]), factor)
+    if legend:
+        from .render_legend import legend_image
 
-def _render_vtk(sampled: Sampled, path: Path, mode: str, size: tuple[int, int], overlay: bool) -> None:
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-
-    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)  # "bad X server connection"
-    vtk.vtkObject.GlobalWarningDisplayOff()
-
-    def polydata(points: np.ndarray, cells: np.ndarray, kind: str):
-        data = vtk.vtkPolyData()
-        pts = vtk.vtkPoints()
-        pts.SetData(numpy_to_vtk(np.ascontiguousarray(points), deep=True))
-        data.SetPoints(pts)
-        n = cells.shape[1]
-        flat = np.hstack([np.full((len(cells), 1), n, dtype=np.int64), cells]).ravel()
-        array = vtk.vtkCellArray()
-        array.SetCells(len(cells), numpy_to_vtkIdTypeArray(flat, deep=True))
-        data.SetPolys(array) if kind == "polys" else data.SetLines(array)
-        return data
-
-    surface = polydata(sampled.points, sampled.triangles, "polys")
-    surface.GetPointData().SetNormals(numpy_to_vtk(np.ascontiguousarray(sampled.normals), deep=True))
-    values, (lo, hi), title = _scalars(sampled, mode)
-    mapper = vtk.vtkPolyDataMapper()
-    mapper.SetInputData(surface)
-    actor = vtk.vtkActor()
-    actor.SetMapper(mapper)
-    ren = vtk.vtkRenderer()
-    ren.SetBackground(1.0, 1.0, 1.0)
-    if values is None:
-        mapper.ScalarVisibilityOff()
-        actor.GetProperty().SetColor(0.62, 0.72, 0.86)
-        actor.GetProperty().SetSpecular(0.3)
-        actor.GetProperty().SetSpecularPower(30)
-    else:
-        surface.GetPointData().SetScalars(numpy_to_vtk(np.ascontiguousarray(values), deep=True))
-        lut = vtk.vtkLookupTable()
-        if mode == "zebra":
-            lut.SetNumberOfTableValues(ZEBRA_STRIPES)
-            for k in range(ZEBRA_STRIPES):
-                c = 0.05 if k % 2 else 0.97
-                lut.SetTableValue(k, c, c, c, 1.0)
-            actor.GetProperty().SetAmbient(1.0)  # the stripes are the light: no shading on top
-            actor.GetProperty().SetDiffuse(0.0)
-        else:
-            lut.SetNumberOfTableValues(256)
-            for k in range(256):  # blue - white - red
-                x = k / 255.0 * 2 - 1
-                r, g, b = (1.0, 1 - x, 1 - x) if x > 0 else (1 + x, 1 + x, 1.0)
-                lut.SetTableValue(k, 0.15 + 0.85 * r, 0.15 + 0.85 * g, 0.15 + 0.85 * b, 1.0)
-        lut.SetRange(lo, hi)
-        lut.Build()
-        mapper.SetLookupTable(lut)
-        mapper.SetScalarRange(lo, hi)
-        mapper.InterpolateScalarsBeforeMappingOn()  # crisp bands, interpolated per pixel
-        if title:
-            bar = vtk.vtkScalarBarActor()
-            bar.SetLookupTable(lut)
-            bar.SetTitle(title)
-            bar.SetNumberOfLabels(5)
-            bar.SetLabelFormat("%-#8.3g")
-            bar.SetWidth(0.12)
-            bar.SetHeight(0.8)
-            bar.SetPosition(0.86, 0.1)
-            bar.UnconstrainedFontSizeOn()
-            for prop, font in ((bar.GetTitleTextProperty(), 16), (bar.GetLabelTextProperty(), 14)):
-                prop.SetFontSize(font)
-                prop.SetColor(0.1, 0.1, 0.1)
-                prop.ShadowOff()
-                prop.ItalicOff()
-            ren.AddActor2D(bar)
-    ren.AddActor(actor)
-    if overlay and len(sampled.lines):
-        ends = sampled.lines.reshape(-1, 3)
-        edges = polydata(ends, np.arange(len(ends)).reshape(-1, 2), "lines")
-        line_mapper = vtk.vtkPolyDataMapper()
-        line_mapper.SetInputData(edges)
-        line_mapper.SetResolveCoincidentTopologyToPolygonOffset()
-        line_actor = vtk.vtkActor()
-        line_actor.SetMapper(line_mapper)
-        line_actor.GetProperty().SetColor(0.1, 0.1, 0.1)
-        line_actor.GetProperty().SetLineWidth(1.5)
-        line_actor.GetProperty().SetLighting(False)
-        ren.AddActor(line_actor)
-    window = vtk.vtkRenderWindow()
-    window.SetOffScreenRendering(1)
-    window.SetSize(*size)
-    window.SetMultiSamples(8)
-    window.AddRenderer(ren)
-    camera = ren.GetActiveCamera()
-    view, up, _ = _camera(sampled.points)
-    centre = 0.5 * (sampled.points.min(axis=0) + sampled.points.max(axis=0))
-    camera.SetFocalPoint(*centre)
-    camera.SetPosition(*(centre - view))
-    camera.SetViewUp(*up)
-    camera.ParallelProjectionOn()  # one view direction everywhere, as the zebra assumes
-    ren.ResetCamera()
-    camera.Zoom(1.25 if not title else 1.05)  # ResetCamera leaves a wide margin; less with a legend
-    if not window.SupportsOpenGL():
-        raise RuntimeError("VTK could not open an off-screen OpenGL context")
-    window.Render()
-    grab = vtk.vtkWindowToImageFilter()
-    grab.SetInput(window)
-    grab.ReadFrontBufferOff()
-    grab.Update()
-    writer = vtk.vtkPNGWriter()
-    writer.SetFileName(str(path))
-    writer.SetInputConnection(grab.GetOutputPort())
-    writer.Write()
-    window.Finalize()
-    if not path.exists() or path.stat().st_size == 0:
-        raise RuntimeError("VTK wrote no image")
-
-
-def _render_matplotlib(sampled: Sampled, path: Path, mode: str, size: tuple[int, int], overlay: bool) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib import cm, colors
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
-
-    values, (lo, hi), title = _scalars(sampled, mode)
-    dpi = 100
-    fig = plt.figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
-    ax = fig.add_subplot(projection="3d", computed_zorder=False)
-    ax.set_axis_off()
-    tri = sampled.triangles
-    view, _, _ = _camera(sampled.points)
-    if values is None:
-        shade = np.clip(-(sampled.normals[tri].mean(axis=1) @ view), 0.0, 1.0)
-        face_colors = np.outer(0.35 + 0.65 * shade, [0.62, 0.72, 0.86])
-        cmap = norm = None
-    elif mode == "zebra":
-        band = np.floor((values[tri].mean(axis=1) - lo) / (hi - lo) * ZEBRA_STRIPES).astype(int) % 2
-        face_colors = np.where(band[:, None] == 1, 0.05, 0.97) * np.ones((1, 3))
-        cmap = norm = None
-    else:
-        cmap, norm = matplotlib.colormaps["coolwarm"], colors.Normalize(lo, hi)
-        face_colors = cmap(norm(values[tri].mean(axis=1)))
-    ax.add_collection3d(Poly3DCollection(sampled.points[tri], facecolors=face_colors, edgecolors="none"))
-    if overlay and len(sampled.lines):
-        ax.add_collection3d(Line3DCollection(sampled.lines, colors="k", linewidths=0.8))
-    lo_xyz, hi_xyz = sampled.points.min(axis=0), sampled.points.max(axis=0)
-    half = 0.5 * float((hi_xyz - lo_xyz).max())
-    centre = 0.5 * (lo_xyz + hi_xyz)
-    for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
-        setter(c - half, c + half)
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(elev=ELEVATION, azim=AZIMUTH)
-    if cmap is not None:
-        fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, label=title)
-    fig.savefig(path, dpi=dpi, format="png")
-    plt.close(fig)
+        title, unit, note = look.legend
+        strip = legend_image((size[0] - width, size[1]), look.cmap, look.range, title, unit, note, look.extend)
+        image = np.concatenate([image, strip], axis=1)
+    write_png(image, Path(path))
+    return used

@@ -13,7 +13,7 @@ from patching.errors import NupatchError
 
 __all__ = [
     "RELATIVE_TOLERANCE", "CONFUSION", "GAP_TOLERANCE", "G1_TOLERANCE_DEG", "SHARP_ANGLE_DEG",
-    "N_WORST", "TESSELLATION_RELATIVE", "MIN_TESSELLATION", "ANGULAR_DEFLECTION", "RENDER_RELATIVE", "check_tolerance",
+    "N_WORST", "TESSELLATION_RELATIVE", "MIN_TESSELLATION", "ANGULAR_DEFLECTION", "check_tolerance",
 ]
 
 #: Tolerance of the B-rep's vertices, edges and faces, times the size.
@@ -40,8 +40,6 @@ TESSELLATION_RELATIVE = 1e-3
 MIN_TESSELLATION = CONFUSION
 #: Angular deflection of a tessellation (radians): OpenCASCADE's usual 0.5.
 ANGULAR_DEFLECTION = 0.5
-#: Default linear deflection of ``nupatch render``'s tessellation, times the size.
-RENDER_RELATIVE = 2e-3
 
 
 def check_tolerance(tolerance, option: str = "--tolerance") -> float:

@@ -672,3 +672,12 @@ def meridian_crease(n: int, i: int, j: int, ratio: float, seed: int = 0, corners
     return with_random_intervals(mesh, ratio, seed) if ratio > 1 else mesh
 
 
+def roof_mesh(n: int = 4, slope: float = 0.08, crease: bool = True):
+    """A roof z = -slope |x| over [-2, 2]^2 on an n x n grid; the ridge x = 0 creased
+    (infinitely sharp: a G0 edge) or not (the subdivision rounds it: G1)."""
+    xs = np.linspace(-2, 2, n + 1)
+    verts = [[x, y, -slope * abs(x)] for x in xs for y in xs]
+    faces = [[i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1] for i in range(n) for j in range(n)]
+    ridge = n // 2
+    creases = {(ridge * (n + 1) + j, ridge * (n + 1) + j + 1): 10.0 for j in range(n)} if crease else {}
+    return patching.from_arrays(verts, faces, creases=creases, name="roof")

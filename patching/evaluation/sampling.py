@@ -35,6 +35,7 @@ __all__ = [
     "local_maxima",
     "count_local_maxima",
     "blending_maxima",
+    "blending_maxima_nodes",
     "spoke_normal_jumps",
     "prominences",
     "neighbourhood",
@@ -419,6 +420,16 @@ def _confirmed_maxima_nodes(
         candidates.append(node)
         kept.append(height)
     return np.array(candidates, dtype=np.int64), np.array(kept)
+
+
+def blending_maxima_nodes(
+    operator: SurfaceOperator, graph: SampleGraph, column: int, values: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes, heights) of the local maxima of the blending function of control point
+    ``column`` given by its node values (N,) on ``graph``, highest first, each beyond the
+    highest confirmed by Newton's method (as ``blending_maxima`` counts them); the nodes say
+    where they are (pictures mark them)."""
+    return _confirmed_maxima_nodes(operator, graph, int(column), np.asarray(values, dtype=np.float64))
 
 
 def prominences(values: np.ndarray, graph: SampleGraph, nodes: np.ndarray, rel_tol: float = 1e-4) -> np.ndarray:
