@@ -37,7 +37,7 @@ from ..topology import Topology
 from .distance import mesh_distance
 from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
 from .remesh import Remesher, quad_remesh
-from .solve import solve_step, umbrella_laplacian
+from .solve import LeastSquares, distance_model, umbrella_laplacian
 
 __all__ = ["FitReport", "FitResult", "fit", "check_triangles", "default_faces"]
 
@@ -240,6 +240,7 @@ def fit(
     tolerance: float = 1e-2,
     fairing: float = 1e-6,
     sampling: str = "auto",
+    distance: str = "sdm",
     name: str = "fit",
 ) -> FitResult:
     """Fit the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1; module docstring).
@@ -287,6 +288,9 @@ def fit(
     layout = PatchLayout.of(operator)
     matrix = operator.matrix.tocsr()
     laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
+    solver = LeastSquares(matrix, layout, laplacian)
+    if distance not in ("sdm", "tdm"):
+        raise ValueError(f"distance must be 'sdm' or 'tdm', not {distance!r}")
     if sampling not in ("auto", "vertices"):
         raise ValueError(f"sampling must be 'auto' or 'vertices', not {sampling!r}")
     points, weights = _data_points(v, f, control_mesh.n_faces, sampling == "vertices")
@@ -324,11 +328,15 @@ def fit(
     for _ in range(max_iterations):
         if errors[-1] <= floor:
             break
-        method = "pdm" if pdm_left > 0 else "tdm"
-        tried_tdm = tried_tdm or method == "tdm"
+        method = "pdm" if pdm_left > 0 else distance
+        tried_tdm = tried_tdm or method != "pdm"
         while True:
             t0 = time.perf_counter()
-            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha, point_distance=on_boundary)
+            quadratic = None
+            if method != "pdm":
+                at = evaluate(layout, matrix @ P, feet.patch, feet.s, feet.t, order=2 if method == "sdm" else 1)
+                quadratic = distance_model(method, at[0], at[1:], points, alpha, on_boundary)
+            newP = solver.solve(feet, points, weights, P, fairing, quadratic)
             t1 = time.perf_counter()
             newfeet = locate(newP, feet)
             timings["solve"] += t1 - t0
@@ -343,7 +351,7 @@ def fit(
                 method, alpha = "pdm", ALPHA_START
         if not e <= errors[-1]:  # cannot happen for PDM but round-off; stop rather than go up
             break
-        if method == "tdm":
+        if method != "pdm":
             alpha = max(alpha / 10.0, ALPHA_MIN)
         pdm_left -= 1
         drop = errors[-1] - e
