@@ -8,13 +8,14 @@ the acceptance distances, both ways), OpenCASCADE's checks of the written STEP.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 
 import patching
 from patching.errors import MeshError
-from patching.fitting import fit
+from patching.fitting import check_triangles, fit
 from patching.fitting.distance import closest_on_triangles, mesh_distance
 from patching.fitting.projection import PatchLayout, evaluate, project
 
@@ -80,7 +81,7 @@ def test_recovers_a_sampled_nupatch_surface(recovery):
     size = np.linalg.norm(np.ptp(truth, axis=0))
     assert np.abs(result.control_mesh.vertices - truth).max() <= 1e-6 * size
     assert result.report.max_input_to_surface <= 1e-9
-    assert "tdm" in result.report.steps
+    assert "sdm" in result.report.steps  # the default squared-distance model after the point-distance steps
 
 
 def test_error_of_each_alternation_is_not_larger(recovery):
@@ -137,14 +138,34 @@ def tetrahedron():
     return np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float), np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
 
 
+def bowtie():
+    """Two tetrahedra sharing vertex 1 only: a non-manifold (bow-tie) vertex."""
+    v, f = tetrahedron()
+    return np.vstack([v, v[[0, 2, 3]] + [2.0, 0.0, 0.0]]), np.vstack([f, np.where(f == 1, 1, np.where(f == 0, 4, f + 3))])
+
+
+def moebius(n: int = 8):
+    """A triangulated Moebius band: no orientation makes its triangles consistent."""
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    v = [[(2 + 0.5 * w * np.cos(a / 2)) * np.cos(a), (2 + 0.5 * w * np.cos(a / 2)) * np.sin(a), 0.5 * w * np.sin(a / 2)]
+         for a in ang for w in (-1, 1)]
+    f = []
+    for i in range(n):
+        b0, b1 = (2 * i + 2, 2 * i + 3) if i + 1 < n else (1, 0)  # the half twist
+        f += [[2 * i, b0, 2 * i + 1], [2 * i + 1, b0, b1]]
+    return np.array(v), np.array(f)
+
+
 @pytest.mark.parametrize(
     "case, message",
     [
         ("three", "at least 4"),
-        ("nan", "non-finite"),
+        ("nan", "vertices row 2 is not finite"),
         ("quads", "triangle mesh"),
         ("nonmanifold", "non-manifold edge"),
-        ("flipped", "inconsistent orientation"),
+        ("bowtie", "vertex 1 is non-manifold"),
+        ("collinear", "triangle 1 (vertices 0 1 3) is degenerate"),
+        ("moebius", "cannot be oriented consistently"),
     ],
 )
 def test_bad_arrays_are_refused(case, message):
@@ -158,11 +179,29 @@ def test_bad_arrays_are_refused(case, message):
     elif case == "nonmanifold":
         v = np.vstack([v, [[1, 1, 1]]])
         f = np.vstack([f, [[0, 1, 4]]])
-    elif case == "flipped":
-        f = f.copy()
-        f[0] = f[0][::-1]
-    with pytest.raises(MeshError, match=message):
+    elif case == "bowtie":
+        v, f = bowtie()
+    elif case == "collinear":
+        v[3] = [0.5, 0.0, 0.0]  # on the edge 0-1: triangle 0 1 3 has no area
+    elif case == "moebius":
+        v, f = moebius()
+    with pytest.raises(MeshError, match=re.escape(message)):
         fit(v, f, remesher=lambda *a: pytest.fail("remesher called on bad input"))
+
+
+def test_orientation_and_unused_vertices_are_repaired():
+    """Triangles running against their neighbours are flipped (the majority's orientation per
+    piece kept) and unreferenced vertices dropped, each repair listed; the result is
+    consistently oriented by trimesh's own check, with the outward orientation kept."""
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    f = np.asarray(sphere.faces).copy()
+    f[::7] = f[::7, ::-1]
+    v = np.vstack([sphere.vertices, [[9.0, 9.0, 9.0]]])
+    v2, f2, repairs = check_triangles(v, f)
+    assert len(repairs) == 2 and f"flipped {len(f[::7])} triangles" in repairs[0] and "dropped 1 vertices" in repairs[1]
+    back = trimesh.Trimesh(v2, f2, process=False)
+    assert back.is_winding_consistent and back.volume > 0
+    np.testing.assert_array_equal(f2, np.asarray(sphere.faces))
 
 
 def test_remesher_failure_is_a_mesh_error():
@@ -190,9 +229,11 @@ def _write_obj(path, v, f):
     "case, message",
     [
         ("three", "at least 4"),
-        ("nan", "non-finite"),
+        ("nan", "not finite"),
         ("quads", "face with 4 vertices"),
         ("nonmanifold", "non-manifold edge"),
+        ("bowtie", "a bow-tie"),  # vertex ids: after merging coincident vertices
+        ("collinear", "is degenerate"),
         ("remesher", "remesher"),
         ("missing", "no such file"),
         ("suffix", "unknown triangle mesh format"),
@@ -213,6 +254,10 @@ def test_bad_input_through_the_cli(run_cli, tmp_path, case, message):
         _write_obj(src, np.vstack([v, [[1, 1, 0]]]), [[0, 1, 4, 2], [0, 1, 3], [1, 4, 3], [4, 2, 3], [2, 0, 3]])
     elif case == "nonmanifold":
         _write_obj(src, np.vstack([v, [[1, 1, 1]]]), np.vstack([f, [[0, 1, 4]]]))
+    elif case == "bowtie":
+        _write_obj(src, *bowtie())
+    elif case == "collinear":
+        _write_obj(src, np.vstack([v[:3], [[0.5, 0.0, 0.0]]]), f)
     elif case == "remesher":
         _write_obj(src, v, f)  # 4 triangles: Instant Meshes returns no usable quad mesh
     elif case == "missing":

@@ -46,9 +46,9 @@ from .projection import FootPoints, PatchLayout
 
 __all__ = ["umbrella_laplacian", "LeastSquares", "principal_curvatures", "distance_model"]
 
-#: CG steps preconditioned by a stale factor before it is refactored (``LeastSquares.solve``).
-REFACTOR_AFTER = 25
-CG_TOLERANCE = 1e-10
+#: Conjugate gradients of the coupled (TDM, SDM) systems: tolerance relative to the residual
+#: at the previous points, most iterations (``LeastSquares.solve``).
+CG_TOLERANCE, CG_ITERATIONS = 1e-8, 300
 
 
 def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
@@ -130,8 +130,7 @@ class LeastSquares:
         indices3[self.map3.ravel()] = (3 * self.pattern.indices[:, None, None] + ab[None, None, :] + 0 * ab[None, :, None]).ravel()
         self.indptr3, self.indices3 = indptr3, indices3
         self.order = None  # the n x n fill-reducing order, from the first system
-        self.factor3 = None  # the last 3n factor (reused as a preconditioner)
-        self.refactors = 0
+        self.factors = 0
         self.cg_iterations = 0
 
     # -- assembly -------------------------------------------------------------------------
@@ -168,7 +167,6 @@ class LeastSquares:
             perm = splu(sp.csc_matrix(pdm), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                         options={"SymmetricMode": True}).perm_c
             self.order = np.argsort(perm)
-            self.order3 = (3 * self.order[:, None] + np.arange(3)[None, :]).ravel()
 
     def solve(self, feet: FootPoints, data: np.ndarray, weights: np.ndarray, previous: np.ndarray,
               fairing: float, quadratic: np.ndarray | None = None) -> np.ndarray:
@@ -215,32 +213,32 @@ class LeastSquares:
             data3[self.map3[:, i, j]] = blocks6[k] + (lam * ltl if i == j else 0.0)
             data3[self.map3[:, j, i]] = blocks6[k] + (lam * ltl if i == j else 0.0)
         system = sp.csr_matrix((data3, self.indices3, self.indptr3), shape=(3 * n, 3 * n))
-        # solve for the step from the previous points: the residual, not the right-hand side,
-        # sets CG's relative tolerance, so the step keeps its precision as the fit converges
-        o3 = self.order3
-        permuted = system[o3][:, o3].tocsr()
-        x_prev = previous.ravel()[o3]
-        residual = (rhs + fair_rhs).ravel()[o3] - permuted @ x_prev
-        solution = None
-        if self.factor3 is not None:
-            lu = self.factor3
-            steps = [0]
+        # Conjugate gradients for the step from the previous points (the residual, not the
+        # right-hand side, sets the relative tolerance, so the step keeps its precision as the
+        # fit converges), preconditioned by K (x) I3, K the mean of the three diagonal blocks
+        # plus the fairing: one n x n factor in the fixed order instead of the 3n one.
+        o = self.order
+        mean = sp.csr_matrix(((blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+        lu = _factor(mean[o][:, o])
+        self.factors += 1
 
-            def count(_):
-                steps[0] += 1
+        def precondition(r):
+            r = np.asarray(r).reshape(n, 3)
+            z = np.empty((n, 3))
+            z[o] = lu.solve(np.ascontiguousarray(r[o]))
+            return z.ravel()
 
-            pre = LinearOperator(permuted.shape, matvec=lu.solve)
-            x, info = cg(permuted, residual, rtol=CG_TOLERANCE, maxiter=REFACTOR_AFTER, M=pre, callback=count)
-            self.cg_iterations += steps[0]
-            if info == 0:
-                solution = x_prev + x
-        if solution is None:
-            self.factor3 = _factor(permuted)
-            self.refactors += 1
-            solution = x_prev + self.factor3.solve(residual)
-        out = np.empty(3 * n)
-        out[o3] = solution
-        return out.reshape(n, 3)
+        x_prev = previous.ravel()
+        residual = (rhs + fair_rhs).ravel() - system @ x_prev
+        steps = [0]
+
+        def count(_):
+            steps[0] += 1
+
+        pre = LinearOperator(system.shape, matvec=precondition)
+        x, _ = cg(system, residual, rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS, M=pre, callback=count)
+        self.cg_iterations += steps[0]
+        return (x_prev + x).reshape(n, 3)
 
 
 def principal_curvatures(su: np.ndarray, sv: np.ndarray, suu: np.ndarray, suv: np.ndarray, svv: np.ndarray):
