@@ -37,7 +37,8 @@ from ..topology import Topology
 from ..validation import as_faces, as_points
 from .distance import mesh_distance
 from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
-from .remesh import Remesher, quad_remesh
+from .features import crease_chains, feature_chains, sharp_edges
+from .remesh import Remesher, polygon_edges, quad_remesh
 from .solve import LeastSquares, distance_model, umbrella_laplacian
 
 __all__ = ["FitReport", "FitResult", "fit", "check_triangles", "default_faces"]
@@ -348,6 +349,7 @@ def fit(
     fairing: float = 1e-6,
     sampling: str = "auto",
     distance: str = "sdm",
+    sharp_angle: float | None = None,
     name: str = "fit",
 ) -> FitResult:
     """Fit the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1; module docstring).
@@ -362,6 +364,11 @@ def fit(
     sampling: "auto" (vertices, centroids and lattice points of coarse triangles, module
     docstring) or "vertices" (the input vertices only, weighted by a third of the incident
     areas: for inputs whose vertices are samples of a surface and whose triangles are not).
+    distance: the squared-distance model after the point-distance steps, "sdm" (with the
+    curvature terms, ``solve.distance_model``) or "tdm" (tangent distance only).
+    sharp_angle: None (every control edge smooth) or degrees: input edges whose triangles'
+    normals differ by more than this are carried onto the remeshed control mesh as creases
+    (``features``; a given ``control_mesh`` keeps its own tags).
     Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
     missing)."""
     start = time.perf_counter()
@@ -371,6 +378,9 @@ def fit(
     if not diagonal > 0:
         raise MeshError("all vertices coincide: the input has no extent", name)
     remesh_seconds = 0.0
+    creases: dict = {}
+    if sharp_angle is not None and not (isinstance(sharp_angle, (int, float)) and 0.0 < float(sharp_angle) < 180.0):
+        raise NupatchError(f"sharp_angle must be a number of degrees between 0 and 180, not {sharp_angle!r}", "sharp_angle")
     if control_mesh is None:
         target = int(faces) if faces is not None else default_faces(f.shape[0])
         if target < 1:
@@ -381,7 +391,13 @@ def fit(
         t0 = time.perf_counter()
         remesher_name = remesher if isinstance(remesher, str) else getattr(remesher, "__name__", "remesher")
         try:
-            control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
+            faces_list = [p.tolist() for p in polygons]
+            if sharp_angle is not None:
+                chains = feature_chains(sharp_edges(v, f, sharp_angle))
+                if chains:
+                    e = np.unique(np.sort(polygon_edges(polygons), axis=1), axis=0)
+                    creases, qv = crease_chains(qv, e, v, chains)
+            control_mesh = from_arrays(qv, faces_list, creases=creases, name=name)
             topo = Topology(control_mesh)
             operator = build_operator(control_mesh, topology=topo)
         except NupatchError as exc:
@@ -503,6 +519,7 @@ def fit(
         steps=steps,
         timings=timings,
         repairs=repairs,
+        creases=len(control_mesh.creases) if remesher_name != "given" else 0,
         distance=distance,
     )
     return FitResult(control_mesh.with_positions(P), operator, surface, report)
