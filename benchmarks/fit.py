@@ -6,7 +6,7 @@ and the distances both ways relative to the diagonal.  ``--against REV`` also ru
 fit with the code of git revision REV (extracted to a temporary directory, each run in its own
 process), alternating with the working tree's, so that a shared, noisy machine compares both
 under the same load.  Run by hand:
-    PYTHONPATH=. python benchmarks/fit.py [--triangles 100000] [--faces 2000] [--against main] [--repeat 1]
+    PYTHONPATH=. python benchmarks/fit.py [--triangles 100000] [--faces 2000] [--against main] [--distance sdm,tdm] [--repeat 1]
 """
 
 from __future__ import annotations
@@ -71,13 +71,13 @@ def main() -> None:
     parser.add_argument("--faces", type=int, default=2000)
     parser.add_argument("--against", metavar="REV", help="also run git revision REV's code, alternating")
     parser.add_argument("--repeat", type=int, default=1)
-    parser.add_argument("--distance", choices=("sdm", "tdm"), help="the distance model (this tree only)")
+    parser.add_argument("--distance", help="the distance model(s) of this tree's runs: sdm, tdm or sdm,tdm (default: fit's)")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--src", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         sys.path.insert(0, args.src)
-        print(json.dumps(worker(args.triangles, args.faces, args.distance)))
+        print(json.dumps(worker(args.triangles, args.faces, args.distance)))  # one model in a worker
         return
     print(f"{'code':<22} {'triangles':>9} {'faces':>6} {'points':>7} {'iters':>5} {'total s':>8}  stages (s)")
     with tempfile.TemporaryDirectory() as tmp:
@@ -90,9 +90,10 @@ def main() -> None:
         for _ in range(args.repeat):
             if old is not None:
                 print(row(f"{args.against}", spawn(old, args, None)), flush=True)
-            r = spawn(ROOT, args, args.distance)
-            print(row(f"this tree ({args.distance or 'default'})", r), flush=True)
-            print(f"{'':<22} steps: {' '.join(r['steps'])}; target under 60 s -> {'met' if r['total'] < 60 else 'NOT met'}", flush=True)
+            for model in (args.distance.split(",") if args.distance else [None]):
+                r = spawn(ROOT, args, model)
+                print(row(f"this tree ({model or 'default'})", r), flush=True)
+                print(f"{'':<22} steps: {' '.join(r['steps'])}; target under 60 s -> {'met' if r['total'] < 60 else 'NOT met'}", flush=True)
 
 
 if __name__ == "__main__":

@@ -440,3 +440,142 @@ def test_read_triangles_formats(tmp_path, suffix):
     back = trimesh.Trimesh(v, f, process=False)
     assert back.is_watertight and back.is_winding_consistent
     assert np.isclose(back.volume, sphere.volume, rtol=1e-6)  # float32 formats: 1e-7 per coordinate
+
+
+# -- sharp features, the squared-distance model ------------------------------------------------
+
+
+def test_sharp_edges_and_chains_of_a_box():
+    """trimesh's box, subdivided: the sharp edges at 30 degrees are exactly the edges on the
+    box's 12 edges (both ends on the same two faces of the box), chained into 12 curves that end
+    at the 8 corners; at 100 degrees there are none."""
+    from patching.fitting.features import feature_chains, sharp_edges
+
+    box = trimesh.creation.box().subdivide().subdivide()
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    edges = sharp_edges(v, f, 30.0)
+    all_edges = np.unique(np.sort(box.edges, axis=1), axis=0)
+    a, b = v[all_edges[:, 0]], v[all_edges[:, 1]]
+    shared = ((np.abs(np.abs(a) - 0.5) < 1e-12) & (a == b)).sum(axis=1)  # faces of the box both ends lie on
+    expected = all_edges[shared >= 2]
+    np.testing.assert_array_equal(np.unique(edges, axis=0), expected)
+    chains = feature_chains(edges)
+    assert len(chains) == 12
+    corner = (np.abs(np.abs(v) - 0.5) < 1e-12).all(axis=1)
+    ends = np.array([[c[0], c[-1]] for c in chains])
+    assert corner[ends].all() and np.unique(ends).size == 8
+    assert sum(len(c) - 1 for c in chains) == len(edges)
+    assert sharp_edges(v, f, 100.0).size == 0
+
+
+@pytest.mark.slow
+def test_sharp_angle_keeps_the_cylinder_rims(run_cli, tmp_path):
+    """A capped cylinder (trimesh) fitted with --sharp-angle 30: its rims become crease chains,
+    the fitted surface's normals just inside the cap and just below the rim differ by the
+    input's 90 degrees (+-1) all round, and the largest distance both ways is several times
+    smaller than without (where the smooth surface rounds and wiggles at the rims)."""
+    pytest.importorskip("pynanoinstantmeshes")
+    cylinder = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=64).subdivide().subdivide()
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rim = np.stack([0.5 * np.cos(ang), 0.5 * np.sin(ang), np.full(40, 0.5)], 1)
+    results = {}
+    for sharp in (None, 30.0):
+        result = fit(cylinder.vertices, cylinder.faces, faces=150, sharp_angle=sharp)
+        layout = PatchLayout.of(result.operator)
+        coefficients = result.operator.matrix @ result.control_mesh.vertices
+
+        def normals(x):
+            feet = project(layout, coefficients, x)
+            _, su, sv = evaluate(layout, coefficients, feet.patch, feet.s, feet.t, order=1)
+            n = np.cross(su, sv)
+            return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+        delta = 1e-3
+        angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", normals(rim * [1 - 2 * delta, 1 - 2 * delta, 1]), normals(rim - [0, 0, delta])), -1, 1)))
+        results[sharp] = (result, angle, _independent_distances(cylinder, result))
+    sharp_result, sharp_angle, sharp_d = results[30.0]
+    _, smooth_angle, smooth_d = results[None]
+    assert sharp_result.report.creases > 0
+    assert np.all(np.abs(sharp_angle - 90.0) <= 1.0), sharp_angle
+    assert smooth_angle.min() < 45.0  # the smooth fit turns the corner gradually somewhere
+    assert sharp_d[0] * 5 <= smooth_d[0] and sharp_d[2] * 2 <= smooth_d[2], (sharp_d, smooth_d)
+    assert sharp_d[0] <= 5e-3 and sharp_d[1] <= 1e-3
+    # the CLI option: creases in the saved control mesh
+    src, out, saved = tmp_path / "cyl.stl", tmp_path / "cyl.step", tmp_path / "cyl.obj"
+    cylinder.export(src)
+    proc = run_cli("fit", src, "-o", out, "--faces", "150", "--sharp-angle", "30", "--json", "-q", "--save-control-mesh", saved)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["creases"] > 0 and "t crease" in saved.read_text()
+
+
+def test_sharp_angle_out_of_range_through_the_cli(run_cli, tmp_path):
+    src = tmp_path / "ico.stl"
+    trimesh.creation.icosphere(subdivisions=1).export(src)
+    out = tmp_path / "o.step"
+    proc = run_cli("fit", src, "-o", out, "--sharp-angle", "200", "-q")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "--sharp-angle" in proc.stderr
+    assert not out.exists()
+
+
+def _sphere_derivatives(u: np.ndarray, w: np.ndarray, radius: float):
+    """S(u, w) = R (cos u cos w, sin u cos w, sin w) and its first and second derivatives;
+    S_u x S_w points outwards for this order, so the sphere bends away from that normal:
+    curvature -1 / R."""
+    cu, su_, cw, sw = np.cos(u), np.sin(u), np.cos(w), np.sin(w)
+    s = radius * np.stack([cu * cw, su_ * cw, sw], 1)
+    s_u = radius * np.stack([-su_ * cw, cu * cw, 0 * u], 1)
+    s_w = radius * np.stack([-cu * sw, -su_ * sw, cw], 1)
+    s_uu = radius * np.stack([-cu * cw, -su_ * cw, 0 * u], 1)
+    s_uw = radius * np.stack([su_ * sw, -cu * sw, 0 * u], 1)
+    s_ww = radius * np.stack([-cu * cw, -su_ * cw, -sw], 1)
+    return s, (s_u, s_w, s_uu, s_uw, s_ww)
+
+
+def test_sdm_model_is_half_the_hessian_of_the_squared_distance_to_a_sphere():
+    """At a point x at distance r from the centre of a sphere of radius R, half the Hessian of
+    the exact squared distance (r - R)^2 (central differences, written here) is n n^T +
+    (1 - R / r)(I - n n^T).  The SDM matrix (alpha = 0) equals it outside the sphere (the point
+    on the side away from the centres of curvature); inside, where 1 - R / r < 0, the safeguard
+    leaves the tangent distance n n^T."""
+    from patching.fitting.solve import distance_model, principal_curvatures
+
+    rng = np.random.default_rng(11)
+    radius = 2.0
+    u, w = rng.uniform(0, 2 * np.pi, 20), rng.uniform(-1.2, 1.2, 20)
+    s, der = _sphere_derivatives(u, w, radius)
+    n, kappa, _ = principal_curvatures(*der)
+    np.testing.assert_allclose(n, s / radius, atol=1e-12)
+    np.testing.assert_allclose(kappa, -1.0 / radius, rtol=1e-10)
+    for factor in (1.3, 0.7):
+        x = s * factor
+        q = distance_model("sdm", s, der, x, alpha=0.0)
+        h = 1e-4
+        f = lambda y: (np.linalg.norm(y, axis=-1) - radius) ** 2
+        hess = np.empty((x.shape[0], 3, 3))
+        for a in range(3):
+            for b in range(3):
+                ea, eb = np.eye(3)[a] * h, np.eye(3)[b] * h
+                hess[:, a, b] = (f(x + ea + eb) - f(x + ea - eb) - f(x - ea + eb) + f(x - ea - eb)) / (4 * h * h)
+        nn = n[:, :, None] * n[:, None, :]
+        if factor > 1:
+            np.testing.assert_allclose(q, 0.5 * hess, atol=1e-6)
+        else:
+            assert np.all(np.linalg.eigvalsh(0.5 * hess - nn).max(axis=1) < 0)  # not convex along the surface
+            np.testing.assert_allclose(q, nn, atol=1e-12)
+        np.testing.assert_allclose(distance_model("tdm", s, der, x, alpha=0.0), nn, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_sdm_converges_at_least_as_well_as_tdm():
+    """On trimesh's torus (convex and saddle regions, points on both sides of the surface):
+    the same fit with the squared-distance model (curvature terms) and with the tangent
+    distance; both error sequences never increase, and SDM ends no higher than TDM."""
+    pytest.importorskip("pynanoinstantmeshes")
+    torus = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=48, minor_sections=24)
+    final = {}
+    for model in ("tdm", "sdm"):
+        result = fit(torus.vertices, torus.faces, faces=120, distance=model, tolerance=1e-3)
+        errors = np.array(result.report.errors)
+        assert np.all(np.diff(errors) <= 0) and model in result.report.steps
+        final[model] = errors[-1]
+    assert final["sdm"] <= final["tdm"], final

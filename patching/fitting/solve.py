@@ -46,9 +46,12 @@ from .projection import FootPoints, PatchLayout
 
 __all__ = ["umbrella_laplacian", "LeastSquares", "principal_curvatures", "distance_model"]
 
-#: Conjugate gradients of the coupled (TDM, SDM) systems: tolerance relative to the residual
-#: at the previous points, most iterations (``LeastSquares.solve``).
-CG_TOLERANCE, CG_ITERATIONS = 1e-8, 300
+#: Coupled (TDM, SDM) systems of at most this many unknowns are solved by their 3n factor.
+DIRECT_UNKNOWNS = 3000
+#: Larger ones by conjugate gradients for the step: tolerance relative to the residual at the
+#: previous points, most iterations (``LeastSquares.solve``).  An inexact step is safe: the
+#: alternation keeps a step only if the error falls.
+CG_TOLERANCE, CG_ITERATIONS = 1e-4, 200
 
 
 def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
@@ -217,6 +220,14 @@ class LeastSquares:
         # right-hand side, sets the relative tolerance, so the step keeps its precision as the
         # fit converges), preconditioned by K (x) I3, K the mean of the three diagonal blocks
         # plus the fairing: one n x n factor in the fixed order instead of the 3n one.
+        x_prev = previous.ravel()
+        residual = (rhs + fair_rhs).ravel() - system @ x_prev
+        if 3 * n <= DIRECT_UNKNOWNS:  # small: the exact step by the 3n factor
+            o3 = (3 * self.order[:, None] + np.arange(3)[None, :]).ravel()
+            step = np.empty(3 * n)
+            step[o3] = _factor(system[o3][:, o3]).solve(residual[o3])
+            self.factors += 1
+            return (x_prev + step).reshape(n, 3)
         o = self.order
         mean = sp.csr_matrix(((blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl, self.pattern.indices, self.pattern.indptr), shape=(n, n))
         lu = _factor(mean[o][:, o])
@@ -228,8 +239,6 @@ class LeastSquares:
             z[o] = lu.solve(np.ascontiguousarray(r[o]))
             return z.ravel()
 
-        x_prev = previous.ravel()
-        residual = (rhs + fair_rhs).ravel() - system @ x_prev
         steps = [0]
 
         def count(_):
