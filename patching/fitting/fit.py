@@ -3,17 +3,19 @@
 Pipeline: a quad control mesh from the triangle mesh (``remesh.quad_remesh``; or a given one),
 uniform knot intervals (the paper's choice), the operator M (``build_operator``), foot points
 of the data points on the patches (``projection.project``), then alternation of least-squares
-solves for the control points with the foot points fixed (``solve.solve_step``) and foot-point
+solves for the control points with the foot points fixed (``solve.LeastSquares``) and foot-point
 updates with the control points fixed, until the error stops falling.
 
 The error of an alternation is E = sum_k w_k |S(foot_k) - x_k|^2 (weighted squared point
 distance, the foot points re-projected).  The first steps minimise the point distance (PDM),
 which can only lower E: the solve minimises E plus a step fairing that is 0 at the old points,
 and the projection keeps each old foot point unless it finds a nearer one.  Later steps use
-the tangent distance (TDM, the first-order approximation of [PLH02]'s squared-distance
-minimisation), which converges much faster but is not a descent method for E: a TDM step is
-kept only when it lowers E, else a PDM step is taken, and the fit stops when neither lowers E
-by more than ``tolerance`` of it.  So the recorded errors never increase.
+the squared-distance model SDM ([PLH02], [FSLYJ]'s [31]; in the form of [WPL06]: the
+second-order approximation with the principal curvatures at the foot point,
+``solve.distance_model``) or its first-order part, the tangent distance TDM; they converge much
+faster but are no descent method for E: such a step is kept only when it lowers E, else a PDM
+step is taken, and the fit stops when neither lowers E by more than ``tolerance`` of it.  So
+the recorded errors never increase.
 
 Data points: the input vertices, and the triangle centroids while the triangles are fewer
 than ``CENTROIDS_BELOW`` per control face; weights are the triangles' areas shared out
@@ -62,7 +64,7 @@ class FitReport:
     max_surface_to_input / rms_surface_to_input: over a REPORT_SAMPLES^2 grid of every patch,
     to the input triangles (``distance.mesh_distance``).
     errors: E after each alternation (the first entry: the start), non-increasing.
-    steps: "pdm" or "tdm" per alternation.
+    steps: "pdm", "sdm" or "tdm" per alternation.
     timings: seconds spent per stage (remesh, operator, project, solve, report).
     repairs: what ``check_triangles`` repaired in the input (flipped triangles, dropped vertices).
     creases: control mesh edges tagged as creases from the input's sharp edges (``sharp_angle``).

@@ -25,14 +25,15 @@ scatter map and the fill-reducing order are computed once per fit, and each step
 batched dense products and one ``bincount``.  The points of a patch are padded to a power of
 two (patches of similar point counts batched together, so padding wastes at most half).
 
-Solving.  PDM: the n x n system with three right-hand sides by sparse LU (SuperLU with the
-precomputed symmetric order and diagonal pivots: an LDL^T in effect; scipy has no sparse
+Solving.  PDM: the n x n system with three right-hand sides by sparse LU (SuperLU in the
+precomputed minimum-degree order with diagonal pivots: an LDL^T in effect; scipy has no sparse
 Cholesky).  TDM and SDM couple the coordinates: the 3n x 3n system, unknowns interleaved per
-control point (3 v + c) and ordered by the n x n order expanded, so its factor has the fill of
-the n x n one times nine.  That factor is kept and reused: the next TDM/SDM step is solved by
-conjugate gradients preconditioned with the previous step's factor (its matrix differs by the
-moved foot points and normals only, so CG converges in a few steps), and it is refactored only
-when CG needs more than ``REFACTOR_AFTER`` iterations.
+control point (3 v + c).  Up to ``DIRECT_UNKNOWNS`` unknowns it is factored in the n x n order
+expanded (exact steps, which the recovery of a sampled surface needs); larger systems by
+conjugate gradients for the step P - P_prev, preconditioned by K (x) I3 with K the mean of the
+three diagonal blocks (one n x n factor; the 3n factor costs some 25 times more, and kept as a
+preconditioner across steps it had to be refactored nearly every step, since alpha changes
+tenfold per step).
 """
 
 from __future__ import annotations
@@ -288,17 +289,17 @@ def distance_model(method: str, surface_points: np.ndarray, derivatives: tuple, 
 
     TDM: Q = n n^T + alpha I (the tangent distance; alpha a Levenberg-Marquardt-like share of
     the point distance that bounds the tangential motion).
-    SDM ([PLH02]; Wang, Pottmann and Liu's squared distance minimisation, [FSLYJ]'s [31]):
+    SDM ([PLH02], [FSLYJ]'s [31]; the curvature-based form and safeguard of [WPL06]):
     the second-order approximation of the squared distance to the surface near the foot point,
     Q = n n^T + sum_i c_i e_i e_i^T + alpha I with the principal directions e_i, curvatures
     kappa_i and the signed distance d = (x - S).n: c_i = d kappa_i / (d kappa_i - 1), i.e.
     d / (d - rho_i) with rho_i = 1 / kappa_i the signed radius, where d kappa_i < 0 (the point
     on the side away from the centre of curvature); c_i = 0 otherwise (the safeguard for points
     between the surface and the centre or beyond it, where the model is not convex: the tangent
-    distance there).  Reconstructed from the distance to a circle of radius R about the centre:
-    at distance r from the centre, |grad|^2-free Hessian of (r - R)^2 has tangential part
-    (r - R) / r, and r = R - d gives d / (d - R); checked in tests against the exact squared
-    distance to a sphere.
+    distance there).  Reconstructed from the squared distance (r - R)^2 to a circle of radius R:
+    at distance r from the centre half its Hessian has the tangential part (r - R) / r, and
+    r = R - d gives d / (d - R); checked in the tests against central differences of the exact
+    squared distance to a sphere, outside (equal) and inside (the safeguard).
     Rows of ``point_distance`` (points held to the open boundary) keep Q = I."""
     su, sv = derivatives[0], derivatives[1]
     if method == "tdm":
