@@ -472,8 +472,9 @@ def test_sharp_edges_and_chains_of_a_box():
 def test_sharp_angle_keeps_the_cylinder_rims(run_cli, tmp_path):
     """A capped cylinder (trimesh) fitted with --sharp-angle 30: its rims become crease chains,
     the fitted surface's normals just inside the cap and just below the rim differ by the
-    input's 90 degrees (+-1) all round, and the largest distance both ways is several times
-    smaller than without (where the smooth surface rounds and wiggles at the rims)."""
+    input's 90 degrees (+-1) all round, and the distances both ways are smaller than without
+    (where the smooth surface rounds and wiggles at the rims), the largest surface -> input
+    distance several times smaller."""
     pytest.importorskip("pynanoinstantmeshes")
     cylinder = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=64).subdivide().subdivide()
     ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
@@ -498,7 +499,9 @@ def test_sharp_angle_keeps_the_cylinder_rims(run_cli, tmp_path):
     assert sharp_result.report.creases > 0
     assert np.all(np.abs(sharp_angle - 90.0) <= 1.0), sharp_angle
     assert smooth_angle.min() < 45.0  # the smooth fit turns the corner gradually somewhere
-    assert sharp_d[0] * 5 <= smooth_d[0] and sharp_d[2] * 2 <= smooth_d[2], (sharp_d, smooth_d)
+    # closer both ways (by trimesh.proximity), the surface -> input maximum several times
+    assert sharp_d[0] <= smooth_d[0] and sharp_d[1] <= smooth_d[1] and sharp_d[3] <= smooth_d[3], (sharp_d, smooth_d)
+    assert sharp_d[2] * 3 <= smooth_d[2], (sharp_d, smooth_d)
     assert sharp_d[0] <= 5e-3 and sharp_d[1] <= 1e-3
     # the CLI option: creases in the saved control mesh
     src, out, saved = tmp_path / "cyl.stl", tmp_path / "cyl.step", tmp_path / "cyl.obj"
