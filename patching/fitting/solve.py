@@ -118,6 +118,8 @@ class LeastSquares:
             start += size
         self.ltl_map = inverse[start:]
         self.ltl_trace = float(self.ltl.diagonal().mean())
+        self.diag = np.searchsorted(unique, np.arange(n, dtype=np.int64) * (n + 1))  # (v, v) entries
+        self.preconditioner = "scaled"
         # the same pattern with 3 x 3 blocks, unknowns interleaved (3 v + c): entry k of row i
         # (in-row offset o, row length r) -> 9 indptr[i] + 3 a r + 3 o + b for block (a, b)
         indptr = self.pattern.indptr
@@ -230,14 +232,29 @@ class LeastSquares:
             self.factors += 1
             return (x_prev + step).reshape(n, 3)
         o = self.order
-        mean = sp.csr_matrix(((blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl, self.pattern.indices, self.pattern.indptr), shape=(n, n))
-        lu = _factor(mean[o][:, o])
+        if self.preconditioner == "kron":
+            scale = None
+            base = (blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl
+        else:
+            # B^1/2 (K (x) I3) B^1/2 with K the point-distance matrix plus the fairing and B_v
+            # the 3n system's diagonal 3 x 3 block at control point v over K_vv: it matches the
+            # diagonal blocks exactly (the normal stiffness and the small tangential one,
+            # alpha plus SDM's curvature terms) and K's coupling between control points
+            base = data1 + lam * ltl
+            blocks = data3[self.map3[self.diag]]  # (n, 3, 3)
+            value, vector = np.linalg.eigh(blocks / base[self.diag][:, None, None])
+            scale = np.einsum("nij,nj,nkj->nik", vector, 1.0 / np.sqrt(np.maximum(value, 1e-300)), vector)
+        lu = _factor(sp.csr_matrix((base, self.pattern.indices, self.pattern.indptr), shape=(n, n))[o][:, o])
         self.factors += 1
 
         def precondition(r):
             r = np.asarray(r).reshape(n, 3)
+            if scale is not None:
+                r = np.einsum("nij,nj->ni", scale, r)
             z = np.empty((n, 3))
             z[o] = lu.solve(np.ascontiguousarray(r[o]))
+            if scale is not None:
+                z = np.einsum("nij,nj->ni", scale, z)
             return z.ravel()
 
         steps = [0]
