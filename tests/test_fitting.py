@@ -582,3 +582,78 @@ def test_sdm_converges_at_least_as_well_as_tdm():
         assert np.all(np.diff(errors) <= 0) and model in result.report.steps
         final[model] = errors[-1]
     assert final["sdm"] <= final["tdm"], final
+
+
+def _reference_system(mesh, op, layout, feet, points, weights, previous, quadratic, fairing):
+    """The step's normal equations assembled the obvious way, written here: the dense design
+    matrix A = B M (B the tensor Bernstein rows of the foot points), rows sqrt(w) u^T (x) a for
+    each eigenpair of Q, the step fairing lambda L^T L (umbrella L), coordinate-major unknowns."""
+    import scipy.sparse as sp
+    from math import comb
+
+    from patching.topology import Topology
+
+    m = feet.patch.size
+    B = np.zeros((m, op.matrix.shape[0]))
+    for k in range(m):
+        d = int(layout.degree[feet.patch[k]])
+        bs = np.array([comb(d, i) * feet.s[k] ** i * (1 - feet.s[k]) ** (d - i) for i in range(d + 1)])
+        bt = np.array([comb(d, i) * feet.t[k] ** i * (1 - feet.t[k]) ** (d - i) for i in range(d + 1)])
+        B[k, layout.row[feet.patch[k]] : layout.row[feet.patch[k]] + (d + 1) ** 2] = np.outer(bs, bt).ravel()
+    A = B @ op.matrix.toarray()
+    n = A.shape[1]
+    edges = Topology(mesh).edges
+    adj = np.zeros((n, n))
+    adj[edges[:, 0], edges[:, 1]] = adj[edges[:, 1], edges[:, 0]] = 1.0
+    L = np.eye(n) - adj / adj.sum(axis=1, keepdims=True)
+    ltl = L.T @ L
+    pdm = A.T @ (weights[:, None] * A)
+    lam = fairing * np.trace(pdm) / np.trace(ltl)
+    if quadratic is None:
+        K = pdm + lam * ltl
+        return K, A.T @ (weights[:, None] * points) + lam * ltl @ previous
+    K = np.zeros((3 * n, 3 * n))
+    rhs = np.zeros(3 * n)
+    for k in range(m):
+        K += weights[k] * np.kron(quadratic[k], np.outer(A[k], A[k]))
+        rhs += weights[k] * np.kron(quadratic[k] @ points[k], A[k])
+    K += lam * np.kron(np.eye(3), ltl)
+    rhs += lam * np.kron(np.eye(3), ltl) @ previous.T.ravel()
+    return K, rhs
+
+
+@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg"])
+def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatch):
+    """``LeastSquares.solve`` (per-patch blocks on a fixed pattern, SuperLU in a fixed order,
+    or CG) against the dense normal equations assembled row by row: the same step exactly
+    (direct), or CG's residual within its tolerance of the residual at the previous points."""
+    import patching.fitting.solve as solve
+
+    V, F = cube_grid(2)
+    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
+    op = patching.build_operator(mesh)
+    layout = PatchLayout.of(op)
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal((300, 3))
+    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
+    w = rng.uniform(0.5, 1.5, 300)
+    P = mesh.vertices
+    feet = project(layout, op.matrix @ P, x)
+    from patching.topology import Topology
+
+    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    Q = None
+    if model != "pdm":
+        at = evaluate(layout, op.matrix @ P, feet.patch, feet.s, feet.t, order=2)
+        Q = solve.distance_model("sdm", at[0], at[1:], x, alpha=1e-3)
+    if model == "sdm-cg":
+        monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+    ours = ls.solve(feet, x, w, P, 1e-6, Q)
+    K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
+    if model == "pdm":
+        np.testing.assert_allclose(ours, np.linalg.solve(K, rhs), atol=1e-9)
+    elif model == "sdm-direct":
+        np.testing.assert_allclose(ours.T.ravel(), np.linalg.solve(K, rhs), atol=1e-9)
+    else:
+        before = np.linalg.norm(rhs - K @ P.T.ravel())
+        assert np.linalg.norm(rhs - K @ ours.T.ravel()) <= 1.01 * solve.CG_TOLERANCE * before
