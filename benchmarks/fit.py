@@ -6,7 +6,7 @@ and the distances both ways relative to the diagonal.  ``--against REV`` also ru
 fit with the code of git revision REV (extracted to a temporary directory, each run in its own
 process), alternating with the working tree's, so that a shared, noisy machine compares both
 under the same load.  Run by hand:
-    PYTHONPATH=. python benchmarks/fit.py [--triangles 100000] [--faces 2000] [--against main] [--distance sdm,tdm] [--repeat 1]
+    PYTHONPATH=. python benchmarks/fit.py [--triangles 100000] [--faces 2000] [--against main] [--distance sdm,tdm] [--iterations K] [--repeat 1]
 """
 
 from __future__ import annotations
@@ -32,13 +32,15 @@ def torus(triangles: int):
     return trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=2 * minor, minor_sections=minor)
 
 
-def worker(triangles: int, faces: int, distance: str | None) -> dict:
+def worker(triangles: int, faces: int, distance: str | None, iterations: int | None = None) -> dict:
     """One fit, in this process, with whatever ``patching`` is first on sys.path."""
     from patching.fitting import fit
 
     mesh = torus(triangles)
     t0 = time.perf_counter()
     kwargs = {} if distance is None else {"distance": distance}
+    if iterations is not None:
+        kwargs["max_iterations"] = iterations
     result = fit(mesh.vertices, mesh.faces, faces=faces, name="torus", **kwargs)
     total = time.perf_counter() - t0
     r = result.report
@@ -52,6 +54,8 @@ def worker(triangles: int, faces: int, distance: str | None) -> dict:
 def spawn(src: Path, args, distance: str | None) -> dict:
     command = [sys.executable, str(Path(__file__).resolve()), "--worker", "--src", str(src),
                "--triangles", str(args.triangles), "--faces", str(args.faces)]
+    if args.iterations is not None:
+        command += ["--iterations", str(args.iterations)]
     if distance is not None:
         command += ["--distance", distance]
     out = subprocess.run(command, check=True, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(src)))
@@ -71,13 +75,14 @@ def main() -> None:
     parser.add_argument("--faces", type=int, default=2000)
     parser.add_argument("--against", metavar="REV", help="also run git revision REV's code, alternating")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--iterations", type=int, help="most alternations of every run (default: fit's), to compare at equal work")
     parser.add_argument("--distance", help="the distance model(s) of this tree's runs: sdm, tdm or sdm,tdm (default: fit's)")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--src", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         sys.path.insert(0, args.src)
-        print(json.dumps(worker(args.triangles, args.faces, args.distance)))  # one model in a worker
+        print(json.dumps(worker(args.triangles, args.faces, args.distance, args.iterations)))  # one model in a worker
         return
     print(f"{'code':<22} {'triangles':>9} {'faces':>6} {'points':>7} {'iters':>5} {'total s':>8}  stages (s)")
     with tempfile.TemporaryDirectory() as tmp:
