@@ -1,4 +1,4 @@
-"""``nupatch fit TRIS -o OUT.step [--faces N] [--control-mesh C.obj] [--json]`` (docs/cli.md):
+"""``nupatch fit TRIS -o OUT.step [--faces N] [--control-mesh C.obj] [--sharp-angle DEG] [--json]`` (docs/cli.md):
 [FSLYJ] sec. 4.1's fitting of the G1 spline to a triangle mesh (``patching.fitting``), written
 as a STEP solid (closed input) or shell (open input)."""
 
@@ -27,6 +27,14 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--save-control-mesh", metavar="FIT.obj", help="also write the fitted control mesh (OBJ, reads back with build)")
     p.add_argument("--iterations", type=int, default=30, metavar="K", help="most alternations (default 30)")
+    p.add_argument(
+        "--sharp-angle", type=float, metavar="DEG",
+        help="input edges whose triangles' normals differ by more than DEG degrees become creases of the control mesh (default: off)",
+    )
+    p.add_argument(
+        "--distance", choices=("sdm", "tdm"), default="sdm",
+        help="squared-distance model after the point-distance steps: sdm (with curvature, default) or tdm (tangent distance)",
+    )
     p.add_argument("--json", action="store_true", help="the report as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
@@ -45,13 +53,18 @@ def run(args: argparse.Namespace) -> int:
         raise NupatchError(f"--faces must be at least 1, not {args.faces}", "command line")
     if args.iterations < 0:
         raise NupatchError(f"--iterations must be >= 0, not {args.iterations}", "command line")
+    if args.sharp_angle is not None and not 0.0 < args.sharp_angle < 180.0:
+        raise NupatchError(f"--sharp-angle must be between 0 and 180 degrees, not {args.sharp_angle:g}", "command line")
     if not out.resolve().parent.is_dir():
         raise NupatchError("the output's directory does not exist", str(out))
     vertices, triangles, name = read_triangles(args.input)
     control = patching.read_mesh(args.control_mesh) if args.control_mesh else None
     if not args.quiet:
         print(f"nupatch: fitting {triangles.shape[0]} triangles ...", file=sys.stderr)
-    result = fit(vertices, triangles, faces=args.faces, control_mesh=control, max_iterations=args.iterations, name=name)
+    result = fit(
+        vertices, triangles, faces=args.faces, control_mesh=control, max_iterations=args.iterations,
+        distance=args.distance, sharp_angle=args.sharp_angle, name=name,
+    )
     to_step(result.surface, out)
     if args.save_control_mesh:
         write_obj(result.control_mesh, args.save_control_mesh, comment=f"nupatch fit of {Path(args.input).name}")

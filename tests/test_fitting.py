@@ -8,13 +8,14 @@ the acceptance distances, both ways), OpenCASCADE's checks of the written STEP.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 
 import patching
 from patching.errors import MeshError
-from patching.fitting import fit
+from patching.fitting import check_triangles, fit
 from patching.fitting.distance import closest_on_triangles, mesh_distance
 from patching.fitting.projection import PatchLayout, evaluate, project
 
@@ -80,7 +81,7 @@ def test_recovers_a_sampled_nupatch_surface(recovery):
     size = np.linalg.norm(np.ptp(truth, axis=0))
     assert np.abs(result.control_mesh.vertices - truth).max() <= 1e-6 * size
     assert result.report.max_input_to_surface <= 1e-9
-    assert "tdm" in result.report.steps
+    assert "sdm" in result.report.steps  # the default squared-distance model after the point-distance steps
 
 
 def test_error_of_each_alternation_is_not_larger(recovery):
@@ -137,14 +138,34 @@ def tetrahedron():
     return np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float), np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
 
 
+def bowtie():
+    """Two tetrahedra sharing vertex 1 only: a non-manifold (bow-tie) vertex."""
+    v, f = tetrahedron()
+    return np.vstack([v, v[[0, 2, 3]] + [2.0, 0.0, 0.0]]), np.vstack([f, np.where(f == 1, 1, np.where(f == 0, 4, f + 3))])
+
+
+def moebius(n: int = 8):
+    """A triangulated Moebius band: no orientation makes its triangles consistent."""
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    v = [[(2 + 0.5 * w * np.cos(a / 2)) * np.cos(a), (2 + 0.5 * w * np.cos(a / 2)) * np.sin(a), 0.5 * w * np.sin(a / 2)]
+         for a in ang for w in (-1, 1)]
+    f = []
+    for i in range(n):
+        b0, b1 = (2 * i + 2, 2 * i + 3) if i + 1 < n else (1, 0)  # the half twist
+        f += [[2 * i, b0, 2 * i + 1], [2 * i + 1, b0, b1]]
+    return np.array(v), np.array(f)
+
+
 @pytest.mark.parametrize(
     "case, message",
     [
         ("three", "at least 4"),
-        ("nan", "non-finite"),
+        ("nan", "vertices row 2 is not finite"),
         ("quads", "triangle mesh"),
         ("nonmanifold", "non-manifold edge"),
-        ("flipped", "inconsistent orientation"),
+        ("bowtie", "vertex 1 is non-manifold"),
+        ("collinear", "triangle 1 (vertices 0 1 3) is degenerate"),
+        ("moebius", "cannot be oriented consistently"),
     ],
 )
 def test_bad_arrays_are_refused(case, message):
@@ -158,11 +179,29 @@ def test_bad_arrays_are_refused(case, message):
     elif case == "nonmanifold":
         v = np.vstack([v, [[1, 1, 1]]])
         f = np.vstack([f, [[0, 1, 4]]])
-    elif case == "flipped":
-        f = f.copy()
-        f[0] = f[0][::-1]
-    with pytest.raises(MeshError, match=message):
+    elif case == "bowtie":
+        v, f = bowtie()
+    elif case == "collinear":
+        v[3] = [0.5, 0.0, 0.0]  # on the edge 0-1: triangle 0 1 3 has no area
+    elif case == "moebius":
+        v, f = moebius()
+    with pytest.raises(MeshError, match=re.escape(message)):
         fit(v, f, remesher=lambda *a: pytest.fail("remesher called on bad input"))
+
+
+def test_orientation_and_unused_vertices_are_repaired():
+    """Triangles running against their neighbours are flipped (the majority's orientation per
+    piece kept) and unreferenced vertices dropped, each repair listed; the result is
+    consistently oriented by trimesh's own check, with the outward orientation kept."""
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    f = np.asarray(sphere.faces).copy()
+    f[::7] = f[::7, ::-1]
+    v = np.vstack([sphere.vertices, [[9.0, 9.0, 9.0]]])
+    v2, f2, repairs = check_triangles(v, f)
+    assert len(repairs) == 2 and f"flipped {len(f[::7])} triangles" in repairs[0] and "dropped 1 vertices" in repairs[1]
+    back = trimesh.Trimesh(v2, f2, process=False)
+    assert back.is_winding_consistent and back.volume > 0
+    np.testing.assert_array_equal(f2, np.asarray(sphere.faces))
 
 
 def test_remesher_failure_is_a_mesh_error():
@@ -190,9 +229,11 @@ def _write_obj(path, v, f):
     "case, message",
     [
         ("three", "at least 4"),
-        ("nan", "non-finite"),
+        ("nan", "not finite"),
         ("quads", "face with 4 vertices"),
         ("nonmanifold", "non-manifold edge"),
+        ("bowtie", "a bow-tie"),  # vertex ids: after merging coincident vertices
+        ("collinear", "is degenerate"),
         ("remesher", "remesher"),
         ("missing", "no such file"),
         ("suffix", "unknown triangle mesh format"),
@@ -213,6 +254,10 @@ def test_bad_input_through_the_cli(run_cli, tmp_path, case, message):
         _write_obj(src, np.vstack([v, [[1, 1, 0]]]), [[0, 1, 4, 2], [0, 1, 3], [1, 4, 3], [4, 2, 3], [2, 0, 3]])
     elif case == "nonmanifold":
         _write_obj(src, np.vstack([v, [[1, 1, 1]]]), np.vstack([f, [[0, 1, 4]]]))
+    elif case == "bowtie":
+        _write_obj(src, *bowtie())
+    elif case == "collinear":
+        _write_obj(src, np.vstack([v[:3], [[0.5, 0.0, 0.0]]]), f)
     elif case == "remesher":
         _write_obj(src, v, f)  # 4 triangles: Instant Meshes returns no usable quad mesh
     elif case == "missing":
@@ -395,3 +440,220 @@ def test_read_triangles_formats(tmp_path, suffix):
     back = trimesh.Trimesh(v, f, process=False)
     assert back.is_watertight and back.is_winding_consistent
     assert np.isclose(back.volume, sphere.volume, rtol=1e-6)  # float32 formats: 1e-7 per coordinate
+
+
+# -- sharp features, the squared-distance model ------------------------------------------------
+
+
+def test_sharp_edges_and_chains_of_a_box():
+    """trimesh's box, subdivided: the sharp edges at 30 degrees are exactly the edges on the
+    box's 12 edges (both ends on the same two faces of the box), chained into 12 curves that end
+    at the 8 corners; at 100 degrees there are none."""
+    from patching.fitting.features import feature_chains, sharp_edges
+
+    box = trimesh.creation.box().subdivide().subdivide()
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    edges = sharp_edges(v, f, 30.0)
+    all_edges = np.unique(np.sort(box.edges, axis=1), axis=0)
+    a, b = v[all_edges[:, 0]], v[all_edges[:, 1]]
+    shared = ((np.abs(np.abs(a) - 0.5) < 1e-12) & (a == b)).sum(axis=1)  # faces of the box both ends lie on
+    expected = all_edges[shared >= 2]
+    np.testing.assert_array_equal(np.unique(edges, axis=0), expected)
+    chains = feature_chains(edges)
+    assert len(chains) == 12
+    corner = (np.abs(np.abs(v) - 0.5) < 1e-12).all(axis=1)
+    ends = np.array([[c[0], c[-1]] for c in chains])
+    assert corner[ends].all() and np.unique(ends).size == 8
+    assert sum(len(c) - 1 for c in chains) == len(edges)
+    assert sharp_edges(v, f, 100.0).size == 0
+
+
+@pytest.mark.slow
+def test_sharp_angle_keeps_the_cylinder_rims(run_cli, tmp_path):
+    """A capped cylinder (trimesh) fitted with --sharp-angle 30: its rims become crease chains,
+    the fitted surface's normals just inside the cap and just below the rim differ by the
+    input's 90 degrees (+-1) all round, and the distances both ways are smaller than without
+    (where the smooth surface rounds and wiggles at the rims), the largest surface -> input
+    distance several times smaller."""
+    pytest.importorskip("pynanoinstantmeshes")
+    cylinder = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=64).subdivide().subdivide()
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rim = np.stack([0.5 * np.cos(ang), 0.5 * np.sin(ang), np.full(40, 0.5)], 1)
+    results = {}
+    for sharp in (None, 30.0):
+        result = fit(cylinder.vertices, cylinder.faces, faces=150, sharp_angle=sharp)
+        layout = PatchLayout.of(result.operator)
+        coefficients = result.operator.matrix @ result.control_mesh.vertices
+
+        def normals(x):
+            feet = project(layout, coefficients, x)
+            _, su, sv = evaluate(layout, coefficients, feet.patch, feet.s, feet.t, order=1)
+            n = np.cross(su, sv)
+            return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+        delta = 1e-3
+        angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", normals(rim * [1 - 2 * delta, 1 - 2 * delta, 1]), normals(rim - [0, 0, delta])), -1, 1)))
+        results[sharp] = (result, angle, _independent_distances(cylinder, result))
+    sharp_result, sharp_angle, sharp_d = results[30.0]
+    _, smooth_angle, smooth_d = results[None]
+    assert sharp_result.report.creases > 0
+    assert np.all(np.abs(sharp_angle - 90.0) <= 1.0), sharp_angle
+    assert smooth_angle.min() < 45.0  # the smooth fit turns the corner gradually somewhere
+    # closer both ways (by trimesh.proximity), the surface -> input maximum several times
+    assert sharp_d[0] <= smooth_d[0] and sharp_d[1] <= smooth_d[1] and sharp_d[3] <= smooth_d[3], (sharp_d, smooth_d)
+    assert sharp_d[2] * 3 <= smooth_d[2], (sharp_d, smooth_d)
+    assert sharp_d[0] <= 5e-3 and sharp_d[1] <= 1e-3
+    # the CLI option: creases in the saved control mesh
+    src, out, saved = tmp_path / "cyl.stl", tmp_path / "cyl.step", tmp_path / "cyl.obj"
+    cylinder.export(src)
+    proc = run_cli("fit", src, "-o", out, "--faces", "150", "--sharp-angle", "30", "--iterations", "1", "--json", "-q", "--save-control-mesh", saved)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["creases"] > 0 and "t crease" in saved.read_text()
+
+
+def test_sharp_angle_out_of_range_through_the_cli(run_cli, tmp_path):
+    src = tmp_path / "ico.stl"
+    trimesh.creation.icosphere(subdivisions=1).export(src)
+    out = tmp_path / "o.step"
+    proc = run_cli("fit", src, "-o", out, "--sharp-angle", "200", "-q")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "--sharp-angle" in proc.stderr
+    assert not out.exists()
+
+
+def _sphere_derivatives(u: np.ndarray, w: np.ndarray, radius: float):
+    """S(u, w) = R (cos u cos w, sin u cos w, sin w) and its first and second derivatives;
+    S_u x S_w points outwards for this order, so the sphere bends away from that normal:
+    curvature -1 / R."""
+    cu, su_, cw, sw = np.cos(u), np.sin(u), np.cos(w), np.sin(w)
+    s = radius * np.stack([cu * cw, su_ * cw, sw], 1)
+    s_u = radius * np.stack([-su_ * cw, cu * cw, 0 * u], 1)
+    s_w = radius * np.stack([-cu * sw, -su_ * sw, cw], 1)
+    s_uu = radius * np.stack([-cu * cw, -su_ * cw, 0 * u], 1)
+    s_uw = radius * np.stack([su_ * sw, -cu * sw, 0 * u], 1)
+    s_ww = radius * np.stack([-cu * cw, -su_ * cw, -sw], 1)
+    return s, (s_u, s_w, s_uu, s_uw, s_ww)
+
+
+def test_sdm_model_is_half_the_hessian_of_the_squared_distance_to_a_sphere():
+    """At a point x at distance r from the centre of a sphere of radius R, half the Hessian of
+    the exact squared distance (r - R)^2 (central differences, written here) is n n^T +
+    (1 - R / r)(I - n n^T).  The SDM matrix (alpha = 0) equals it outside the sphere (the point
+    on the side away from the centres of curvature); inside, where 1 - R / r < 0, the safeguard
+    leaves the tangent distance n n^T."""
+    from patching.fitting.solve import distance_model, principal_curvatures
+
+    rng = np.random.default_rng(11)
+    radius = 2.0
+    u, w = rng.uniform(0, 2 * np.pi, 20), rng.uniform(-1.2, 1.2, 20)
+    s, der = _sphere_derivatives(u, w, radius)
+    n, kappa, _ = principal_curvatures(*der)
+    np.testing.assert_allclose(n, s / radius, atol=1e-12)
+    np.testing.assert_allclose(kappa, -1.0 / radius, rtol=1e-10)
+    for factor in (1.3, 0.7):
+        x = s * factor
+        q = distance_model("sdm", s, der, x, alpha=0.0)
+        h = 1e-4
+        f = lambda y: (np.linalg.norm(y, axis=-1) - radius) ** 2
+        hess = np.empty((x.shape[0], 3, 3))
+        for a in range(3):
+            for b in range(3):
+                ea, eb = np.eye(3)[a] * h, np.eye(3)[b] * h
+                hess[:, a, b] = (f(x + ea + eb) - f(x + ea - eb) - f(x - ea + eb) + f(x - ea - eb)) / (4 * h * h)
+        nn = n[:, :, None] * n[:, None, :]
+        if factor > 1:
+            np.testing.assert_allclose(q, 0.5 * hess, atol=1e-6)
+        else:
+            assert np.all(np.linalg.eigvalsh(0.5 * hess - nn).max(axis=1) < 0)  # not convex along the surface
+            np.testing.assert_allclose(q, nn, atol=1e-12)
+        np.testing.assert_allclose(distance_model("tdm", s, der, x, alpha=0.0), nn, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_sdm_converges_at_least_as_well_as_tdm():
+    """On trimesh's torus (convex and saddle regions, points on both sides of the surface):
+    the same fit with the squared-distance model (curvature terms) and with the tangent
+    distance; both error sequences never increase, and SDM ends no higher than TDM."""
+    pytest.importorskip("pynanoinstantmeshes")
+    torus = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=48, minor_sections=24)
+    final = {}
+    for model in ("tdm", "sdm"):
+        result = fit(torus.vertices, torus.faces, faces=120, distance=model, tolerance=1e-3)
+        errors = np.array(result.report.errors)
+        assert np.all(np.diff(errors) <= 0) and model in result.report.steps
+        final[model] = errors[-1]
+    assert final["sdm"] <= final["tdm"], final
+
+
+def _reference_system(mesh, op, layout, feet, points, weights, previous, quadratic, fairing):
+    """The step's normal equations assembled the obvious way, written here: the dense design
+    matrix A = B M (B the tensor Bernstein rows of the foot points), rows sqrt(w) u^T (x) a for
+    each eigenpair of Q, the step fairing lambda L^T L (umbrella L), coordinate-major unknowns."""
+    import scipy.sparse as sp
+    from math import comb
+
+    from patching.topology import Topology
+
+    m = feet.patch.size
+    B = np.zeros((m, op.matrix.shape[0]))
+    for k in range(m):
+        d = int(layout.degree[feet.patch[k]])
+        bs = np.array([comb(d, i) * feet.s[k] ** i * (1 - feet.s[k]) ** (d - i) for i in range(d + 1)])
+        bt = np.array([comb(d, i) * feet.t[k] ** i * (1 - feet.t[k]) ** (d - i) for i in range(d + 1)])
+        B[k, layout.row[feet.patch[k]] : layout.row[feet.patch[k]] + (d + 1) ** 2] = np.outer(bs, bt).ravel()
+    A = B @ op.matrix.toarray()
+    n = A.shape[1]
+    edges = Topology(mesh).edges
+    adj = np.zeros((n, n))
+    adj[edges[:, 0], edges[:, 1]] = adj[edges[:, 1], edges[:, 0]] = 1.0
+    L = np.eye(n) - adj / adj.sum(axis=1, keepdims=True)
+    ltl = L.T @ L
+    pdm = A.T @ (weights[:, None] * A)
+    lam = fairing * np.trace(pdm) / np.trace(ltl)
+    if quadratic is None:
+        K = pdm + lam * ltl
+        return K, A.T @ (weights[:, None] * points) + lam * ltl @ previous
+    K = np.zeros((3 * n, 3 * n))
+    rhs = np.zeros(3 * n)
+    for k in range(m):
+        K += weights[k] * np.kron(quadratic[k], np.outer(A[k], A[k]))
+        rhs += weights[k] * np.kron(quadratic[k] @ points[k], A[k])
+    K += lam * np.kron(np.eye(3), ltl)
+    rhs += lam * np.kron(np.eye(3), ltl) @ previous.T.ravel()
+    return K, rhs
+
+
+@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg"])
+def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatch):
+    """``LeastSquares.solve`` (per-patch blocks on a fixed pattern, SuperLU in a fixed order,
+    or CG) against the dense normal equations assembled row by row: the same step exactly
+    (direct), or CG's residual within its tolerance of the residual at the previous points."""
+    import patching.fitting.solve as solve
+
+    V, F = cube_grid(2)
+    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
+    op = patching.build_operator(mesh)
+    layout = PatchLayout.of(op)
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal((300, 3))
+    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
+    w = rng.uniform(0.5, 1.5, 300)
+    P = mesh.vertices
+    feet = project(layout, op.matrix @ P, x)
+    from patching.topology import Topology
+
+    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    Q = None
+    if model != "pdm":
+        at = evaluate(layout, op.matrix @ P, feet.patch, feet.s, feet.t, order=2)
+        Q = solve.distance_model("sdm", at[0], at[1:], x, alpha=1e-3)
+    if model == "sdm-cg":
+        monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+    ours = ls.solve(feet, x, w, P, 1e-6, Q)
+    K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
+    if model == "pdm":
+        np.testing.assert_allclose(ours, np.linalg.solve(K, rhs), atol=1e-9)
+    elif model == "sdm-direct":
+        np.testing.assert_allclose(ours.T.ravel(), np.linalg.solve(K, rhs), atol=1e-9)
+    else:
+        before = np.linalg.norm(rhs - K @ P.T.ravel())
+        assert np.linalg.norm(rhs - K @ ours.T.ravel()) <= 1.01 * solve.CG_TOLERANCE * before

@@ -1,6 +1,8 @@
 """Fitting the G1 spline to triangle meshes ([FSLYJ] sec. 4.1): remesher adapter
-(``remesh``), foot points (``projection``), least squares through M (``solve``), the
-alternation and its report (``fit``), distances for the report (``distance``)."""
+(``remesh``), the input's sharp edges as creases (``features``), foot points
+(``projection``), least squares through M and the distance models (``solve``), the
+alternation, the input checks and the report (``fit``), distances for the report
+(``distance``)."""
 
 from .fit import FitReport, FitResult, check_triangles, default_faces, fit
 from .remesh import REMESHERS, quad_remesh

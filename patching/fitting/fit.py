@@ -3,17 +3,19 @@
 Pipeline: a quad control mesh from the triangle mesh (``remesh.quad_remesh``; or a given one),
 uniform knot intervals (the paper's choice), the operator M (``build_operator``), foot points
 of the data points on the patches (``projection.project``), then alternation of least-squares
-solves for the control points with the foot points fixed (``solve.solve_step``) and foot-point
+solves for the control points with the foot points fixed (``solve.LeastSquares``) and foot-point
 updates with the control points fixed, until the error stops falling.
 
 The error of an alternation is E = sum_k w_k |S(foot_k) - x_k|^2 (weighted squared point
 distance, the foot points re-projected).  The first steps minimise the point distance (PDM),
 which can only lower E: the solve minimises E plus a step fairing that is 0 at the old points,
 and the projection keeps each old foot point unless it finds a nearer one.  Later steps use
-the tangent distance (TDM, the first-order approximation of [PLH02]'s squared-distance
-minimisation), which converges much faster but is not a descent method for E: a TDM step is
-kept only when it lowers E, else a PDM step is taken, and the fit stops when neither lowers E
-by more than ``tolerance`` of it.  So the recorded errors never increase.
+the squared-distance model SDM ([PLH02], [FSLYJ]'s [31]; in the form of [WPL06]: the
+second-order approximation with the principal curvatures at the foot point,
+``solve.distance_model``) or its first-order part, the tangent distance TDM; they converge much
+faster but are no descent method for E: such a step is kept only when it lowers E, else a PDM
+step is taken, and the fit stops when neither lowers E by more than ``tolerance`` of it.  So
+the recorded errors never increase.
 
 Data points: the input vertices, and the triangle centroids while the triangles are fewer
 than ``CENTROIDS_BELOW`` per control face; weights are the triangles' areas shared out
@@ -34,10 +36,12 @@ from ..mesh import ControlMesh, from_arrays
 from ..operator import SurfaceOperator, build_operator
 from ..surface import BezierSurface
 from ..topology import Topology
+from ..validation import as_faces, as_points
 from .distance import mesh_distance
 from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
-from .remesh import Remesher, quad_remesh
-from .solve import solve_step, umbrella_laplacian
+from .features import crease_chains, feature_chains, sharp_edges
+from .remesh import Remesher, polygon_edges, quad_remesh
+from .solve import LeastSquares, distance_model, umbrella_laplacian
 
 __all__ = ["FitReport", "FitResult", "fit", "check_triangles", "default_faces"]
 
@@ -60,8 +64,11 @@ class FitReport:
     max_surface_to_input / rms_surface_to_input: over a REPORT_SAMPLES^2 grid of every patch,
     to the input triangles (``distance.mesh_distance``).
     errors: E after each alternation (the first entry: the start), non-increasing.
-    steps: "pdm" or "tdm" per alternation.
+    steps: "pdm", "sdm" or "tdm" per alternation.
     timings: seconds spent per stage (remesh, operator, project, solve, report).
+    repairs: what ``check_triangles`` repaired in the input (flipped triangles, dropped vertices).
+    creases: control mesh edges tagged as creases from the input's sharp edges (``sharp_angle``).
+    distance: the squared-distance model after the point-distance steps ("sdm" or "tdm").
     """
 
     diagonal: float
@@ -82,6 +89,9 @@ class FitReport:
     errors: list = field(default_factory=list)
     steps: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
+    repairs: list = field(default_factory=list)
+    creases: int = 0
+    distance: str = "sdm"
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -98,6 +108,8 @@ class FitReport:
                 f"surface -> input: max {self.max_surface_to_input:.3e}, rms {self.rms_surface_to_input:.3e} of the diagonal",
                 f"{self.iterations} alternations ({' '.join(self.steps)}), {self.seconds:.2f} s (remesher {self.remesh_seconds:.2f} s)",
             ]
+            + ([f"{self.creases} control edges tagged as creases (sharp input edges)"] if self.creases else [])
+            + [f"repaired: {r}" for r in self.repairs]
         )
 
 
@@ -111,53 +123,151 @@ class FitResult:
     report: FitReport
 
 
-def check_triangles(vertices, triangles, name: str = "input") -> tuple[np.ndarray, np.ndarray]:
-    """The input as (n, 3) float64 vertices and (t, 3) int64 triangles, or MeshError naming the
-    problem: not triangles, fewer than 4, a non-finite coordinate, an index out of range, a
-    triangle repeating a vertex, an edge of more than two triangles (non-manifold), or two
-    neighbouring triangles of opposite orientation."""
-    try:
-        v = np.asarray(vertices, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise MeshError(f"vertices are not numbers: {exc}", name) from None
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (n, 3), got {v.shape}", name)
-    try:
-        f = np.asarray(triangles)
-    except ValueError:
-        raise MeshError("faces of different sizes: fit takes a triangle mesh", name) from None
-    if f.dtype == object or f.ndim != 2:
-        raise MeshError("faces of different sizes: fit takes a triangle mesh", name)
+def check_triangles(vertices, triangles, name: str = "input") -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The input as (n, 3) float64 vertices and (t, 3) int64 triangles, and the list of repairs
+    made; MeshError naming the vertex, triangle or edge for what cannot be repaired.
+
+    Refused: vertices or faces of the wrong shape or type, or a non-finite coordinate
+    (``validation.as_points`` / ``as_faces``, the checks of every entry point); faces that are
+    not triangles; fewer than 4; an index out of range; a triangle repeating a vertex or of
+    zero area (collinear vertices); an edge of more than two triangles (non-manifold edge); a
+    vertex where two or more fans of triangles meet only at the vertex (a bow-tie,
+    non-manifold vertex); triangles that no choice of orientation makes consistent (a Moebius
+    band).  Repaired, as CAD tools do on import: unreferenced vertices are dropped, and
+    triangles whose orientation disagrees with their neighbours' are flipped (per connected
+    piece, the orientation of the majority of its triangles is kept)."""
+    v = as_points(vertices, "vertices", error=MeshError)
+    f = as_faces(triangles, "triangles")
+    if not isinstance(f, np.ndarray):
+        sizes = [len(x) for x in f]
+        bad = next((k for k, size in enumerate(sizes) if size != 3), None)
+        if bad is not None:
+            raise MeshError(f"triangles[{bad}] has {sizes[bad]} vertices: fit takes a triangle mesh", f"{name}, triangle {bad}")
+        f = np.array(f, dtype=np.int64).reshape(-1, 3)
     if f.shape[1] != 3:
         raise MeshError(f"faces have {f.shape[1]} vertices: fit takes a triangle mesh", name)
-    if not np.issubdtype(f.dtype, np.integer):
-        raise MeshError("triangle vertex ids must be integers", name)
-    f = f.astype(np.int64)
     if f.shape[0] < 4:
         raise MeshError(f"{f.shape[0]} triangles: at least 4 are needed to fit a surface", name)
     if f.min() < 0 or f.max() >= v.shape[0]:
         k = int(np.flatnonzero((f < 0).any(axis=1) | (f >= v.shape[0]).any(axis=1))[0])
         raise MeshError(f"triangle {k} uses a vertex id out of range (there are {v.shape[0]} vertices)", f"{name}, triangle {k}")
-    used = np.unique(f)
-    bad = used[~np.isfinite(v[used]).all(axis=1)]
-    if bad.size:
-        raise MeshError(f"non-finite coordinate of vertex {int(bad[0])}", f"{name}, vertex {int(bad[0])}")
     rep = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
     if rep.size:
         raise MeshError(f"triangle {int(rep[0])} repeats a vertex", f"{name}, triangle {int(rep[0])}")
+    # zero area: |cross| below round-off of the longest edge squared
+    e0, e1, e2 = v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 1]]
+    longest = np.max([np.einsum("ij,ij->i", e, e) for e in (e0, e1, e2)], axis=0)
+    flat = np.flatnonzero(np.linalg.norm(np.cross(e0, e1), axis=1) <= 1e-12 * longest)
+    if flat.size:
+        k = int(flat[0])
+        raise MeshError(
+            f"triangle {k} (vertices {' '.join(map(str, f[k].tolist()))}) is degenerate: its vertices are collinear, zero area "
+            f"({flat.size} such triangles)", f"{name}, triangle {k}")
     directed = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)
-    keys, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    lo, hi = directed.min(axis=1), directed.max(axis=1)
+    keys, inverse, counts = np.unique(lo * v.shape[0] + hi, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
     if counts.max() > 2:
-        a, b = (int(x) for x in keys[np.argmax(counts)])
+        a, b = divmod(int(keys[np.argmax(counts)]), v.shape[0])
         raise MeshError(f"non-manifold edge {a}-{b} shared by {int(counts.max())} triangles", f"{name}, edge {a}-{b}")
-    dkeys, dcounts = np.unique(directed, axis=0, return_counts=True)
-    if dcounts.max() > 1:
-        a, b = (int(x) for x in dkeys[np.argmax(dcounts)])
-        raise MeshError(f"triangles on both sides of edge {a}-{b} run the same way: inconsistent orientation", f"{name}, edge {a}-{b}")
-    # keep only used vertices
+    pairs = _interior_pairs(inverse, counts)
+    _check_vertex_fans(f, directed, pairs, name)
+    repairs = []
+    flips = _orientation_flips(f, directed, pairs, name)
+    if flips.any():
+        f = f.copy()
+        f[flips] = f[flips][:, ::-1]
+        repairs.append(f"flipped {int(flips.sum())} triangles whose orientation disagreed with their neighbours'")
+    used = np.unique(f)
+    if used.size < v.shape[0]:
+        repairs.append(f"dropped {v.shape[0] - used.size} vertices that no triangle uses")
     remap = np.full(v.shape[0], -1, dtype=np.int64)
     remap[used] = np.arange(used.size)
-    return v[used], remap[f]
+    return v[used], remap[f], repairs
+
+
+def _interior_pairs(inverse: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For every edge of two triangles, the two directed-edge slots (3 t + k) that use it."""
+    order = np.argsort(inverse, kind="stable")
+    start = np.cumsum(counts) - counts
+    two = np.flatnonzero(counts == 2)
+    return order[start[two]], order[start[two] + 1]
+
+
+def _check_vertex_fans(f: np.ndarray, directed: np.ndarray, pairs: tuple[np.ndarray, np.ndarray], name: str) -> None:
+    """MeshError at the first vertex whose triangles form more than one fan.  Corners
+    (vertex, triangle) are linked when the two triangles share an edge at that vertex; a
+    manifold vertex's corners are one connected component."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    t = f.shape[0]
+    a, b = pairs
+    # slot 3 i + k is edge (f[i, k], f[i, k+1]); its corners are 3 i + k and 3 i + (k+1) % 3
+    ta, ka, tb, kb = a // 3, a % 3, b // 3, b % 3
+    corner_a0, corner_a1 = 3 * ta + ka, 3 * ta + (ka + 1) % 3
+    # the same vertex in the other triangle: its slot runs the edge either way
+    va = directed[a, 0]
+    corner_b_for_a0 = np.where(directed[b, 0] == va, 3 * tb + kb, 3 * tb + (kb + 1) % 3)
+    corner_b_for_a1 = np.where(directed[b, 0] == va, 3 * tb + (kb + 1) % 3, 3 * tb + kb)
+    rows = np.concatenate([corner_a0, corner_a1])
+    cols = np.concatenate([corner_b_for_a0, corner_b_for_a1])
+    graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(3 * t, 3 * t))
+    _, labels = connected_components(graph, directed=False)
+    vertex = f.ravel()
+    pairs = np.unique(vertex * (3 * t) + labels)
+    fans = np.bincount(pairs // (3 * t), minlength=int(vertex.max()) + 1)
+    bad = np.flatnonzero(fans > 1)
+    if bad.size:
+        k = int(bad[0])
+        raise MeshError(
+            f"vertex {k} is non-manifold: its triangles form {int(fans[k])} fans that meet only at this vertex (a bow-tie)",
+            f"{name}, vertex {k}")
+
+
+def _orientation_flips(f: np.ndarray, directed: np.ndarray, pairs: tuple[np.ndarray, np.ndarray], name: str) -> np.ndarray:
+    """(t,) bool: the triangles to flip so that every interior edge is run both ways, keeping
+    the majority's orientation per connected piece; MeshError when no flips do (non-orientable)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    t = f.shape[0]
+    a, b = pairs
+    ta, tb = a // 3, b // 3
+    same = directed[a, 0] == directed[b, 0]  # both triangles run the edge the same way
+    if not same.any():
+        return np.zeros(t, dtype=bool)
+    graph = coo_matrix((np.ones(ta.size), (ta, tb)), shape=(t, t)).tocsr()
+    graph = graph + graph.T
+    n_pieces, piece = connected_components(graph, directed=False)
+    # a spanning forest (breadth-first from each piece's first triangle); a triangle's flip is
+    # the parity of "same way" edges on its path to the root, by pointer jumping
+    key = np.minimum(ta, tb) * t + np.maximum(ta, tb)
+    sort = np.argsort(key)
+    parent = np.full(t, -1, dtype=np.int64)
+    for root in np.unique(piece, return_index=True)[1]:
+        order, pred = breadth_first_order(graph, int(root), directed=False)
+        parent[order[1:]] = pred[order[1:]]
+    child = np.flatnonzero(parent >= 0)
+    tree_key = np.minimum(child, parent[child]) * t + np.maximum(child, parent[child])
+    parity = np.zeros(t, dtype=bool)
+    parity[child] = same[sort[np.searchsorted(key[sort], tree_key)]]
+    up = parent.copy()
+    while (up >= 0).any():
+        has = up >= 0
+        parity[has] ^= parity[up[has]]
+        up[has] = up[up[has]]
+    flip = parity
+    bad = same != (flip[ta] ^ flip[tb])
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        x, y = (int(q) for q in directed[a[k]])
+        raise MeshError(f"the triangles cannot be oriented consistently (a non-orientable surface) at edge {x}-{y}", f"{name}, edge {x}-{y}")
+    for p in range(n_pieces):  # keep each piece's majority orientation
+        members = piece == p
+        if flip[members].sum() * 2 > members.sum():
+            flip[members] = ~flip[members]
+    return flip
 
 
 def default_faces(n_triangles: int) -> int:
@@ -240,6 +350,8 @@ def fit(
     tolerance: float = 1e-2,
     fairing: float = 1e-6,
     sampling: str = "auto",
+    distance: str = "sdm",
+    sharp_angle: float | None = None,
     name: str = "fit",
 ) -> FitResult:
     """Fit the G1 spline to a triangle mesh ([FSLYJ] sec. 4.1; module docstring).
@@ -254,15 +366,23 @@ def fit(
     sampling: "auto" (vertices, centroids and lattice points of coarse triangles, module
     docstring) or "vertices" (the input vertices only, weighted by a third of the incident
     areas: for inputs whose vertices are samples of a surface and whose triangles are not).
+    distance: the squared-distance model after the point-distance steps, "sdm" (with the
+    curvature terms, ``solve.distance_model``) or "tdm" (tangent distance only).
+    sharp_angle: None (every control edge smooth) or degrees: input edges whose triangles'
+    normals differ by more than this are carried onto the remeshed control mesh as creases
+    (``features``; a given ``control_mesh`` keeps its own tags).
     Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
     missing)."""
     start = time.perf_counter()
     timings = {"remesh": 0.0, "operator": 0.0, "project": 0.0, "solve": 0.0, "report": 0.0}
-    v, f = check_triangles(vertices, triangles, name)
+    v, f, repairs = check_triangles(vertices, triangles, name)
     diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
     if not diagonal > 0:
         raise MeshError("all vertices coincide: the input has no extent", name)
     remesh_seconds = 0.0
+    creases: dict = {}
+    if sharp_angle is not None and not (isinstance(sharp_angle, (int, float)) and 0.0 < float(sharp_angle) < 180.0):
+        raise NupatchError(f"sharp_angle must be a number of degrees between 0 and 180, not {sharp_angle!r}", "sharp_angle")
     if control_mesh is None:
         target = int(faces) if faces is not None else default_faces(f.shape[0])
         if target < 1:
@@ -273,7 +393,13 @@ def fit(
         t0 = time.perf_counter()
         remesher_name = remesher if isinstance(remesher, str) else getattr(remesher, "__name__", "remesher")
         try:
-            control_mesh = from_arrays(qv, [p.tolist() for p in polygons], name=name)
+            faces_list = [p.tolist() for p in polygons]
+            if sharp_angle is not None:
+                chains = feature_chains(sharp_edges(v, f, sharp_angle))
+                if chains:
+                    e = np.unique(np.sort(polygon_edges(polygons), axis=1), axis=0)
+                    creases, qv = crease_chains(qv, e, v, chains)
+            control_mesh = from_arrays(qv, faces_list, creases=creases, name=name)
             topo = Topology(control_mesh)
             operator = build_operator(control_mesh, topology=topo)
         except NupatchError as exc:
@@ -287,6 +413,9 @@ def fit(
     layout = PatchLayout.of(operator)
     matrix = operator.matrix.tocsr()
     laplacian = umbrella_laplacian(control_mesh.n_vertices, topo.edges)
+    solver = LeastSquares(matrix, layout, laplacian)
+    if distance not in ("sdm", "tdm"):
+        raise ValueError(f"distance must be 'sdm' or 'tdm', not {distance!r}")
     if sampling not in ("auto", "vertices"):
         raise ValueError(f"sampling must be 'auto' or 'vertices', not {sampling!r}")
     points, weights = _data_points(v, f, control_mesh.n_faces, sampling == "vertices")
@@ -324,11 +453,15 @@ def fit(
     for _ in range(max_iterations):
         if errors[-1] <= floor:
             break
-        method = "pdm" if pdm_left > 0 else "tdm"
-        tried_tdm = tried_tdm or method == "tdm"
+        method = "pdm" if pdm_left > 0 else distance
+        tried_tdm = tried_tdm or method != "pdm"
         while True:
             t0 = time.perf_counter()
-            newP = solve_step(matrix, layout, feet, points, weights, P, laplacian, fairing, method, alpha=alpha, point_distance=on_boundary)
+            quadratic = None
+            if method != "pdm":
+                at = evaluate(layout, matrix @ P, feet.patch, feet.s, feet.t, order=2 if method == "sdm" else 1)
+                quadratic = distance_model(method, at[0], at[1:], points, alpha, on_boundary)
+            newP = solver.solve(feet, points, weights, P, fairing, quadratic)
             t1 = time.perf_counter()
             newfeet = locate(newP, feet)
             timings["solve"] += t1 - t0
@@ -343,7 +476,7 @@ def fit(
                 method, alpha = "pdm", ALPHA_START
         if not e <= errors[-1]:  # cannot happen for PDM but round-off; stop rather than go up
             break
-        if method == "tdm":
+        if method != "pdm":
             alpha = max(alpha / 10.0, ALPHA_MIN)
         pdm_left -= 1
         drop = errors[-1] - e
@@ -387,5 +520,8 @@ def fit(
         errors=errors,
         steps=steps,
         timings=timings,
+        repairs=repairs,
+        creases=len(control_mesh.creases) if remesher_name != "given" else 0,
+        distance=distance,
     )
     return FitResult(control_mesh.with_positions(P), operator, surface, report)

@@ -74,16 +74,17 @@ class FootPoints:
 
 def _bernstein(d: int, x: np.ndarray) -> np.ndarray:
     """(m, d+1) B_i^d(x) by the triangular recurrence B_i^k = (1-x) B_i^{k-1} + x B_{i-1}^{k-1}
-    (cheaper than the powers of ``bernstein.bernstein``, the same values to round-off)."""
-    out = np.zeros((x.size, d + 1))
-    out[:, 0] = 1.0
+    (cheaper than the powers of ``bernstein.bernstein``, the same values to round-off),
+    computed on contiguous rows of a (d+1, m) array and returned transposed."""
+    out = np.zeros((d + 1, x.size))
+    out[0] = 1.0
     u = 1.0 - x
     for k in range(1, d + 1):
-        out[:, k] = x * out[:, k - 1]
+        out[k] = x * out[k - 1]
         for i in range(k - 1, 0, -1):
-            out[:, i] = u * out[:, i] + x * out[:, i - 1]
-        out[:, 0] = u * out[:, 0]
-    return out
+            out[i] = u * out[i] + x * out[i - 1]
+        out[0] *= u
+    return out.T
 
 
 def basis_derivatives(d: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -101,26 +102,24 @@ def basis_derivatives(d: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return b, db, ddb
 
 
-def _apply(u: np.ndarray, v: np.ndarray, nets: np.ndarray) -> np.ndarray:
-    """sum_ij u[m, i] v[m, j] nets[m, i, j, c] -> (m, c)."""
-    return np.einsum("mj,mjc->mc", v, np.einsum("mi,mijc->mjc", u, nets))
-
-
 def _evaluate_nets(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int):
-    """Points (order 0), with S_s, S_t (1), and S_ss, S_st, S_tt (2) of per-point nets: the
-    contraction over i is done once per s-basis, then each is contracted over j."""
-    d = nets.shape[1] - 1
+    """Points (order 0), with S_s, S_t (1), and S_ss, S_st, S_tt (2) of per-point nets
+    (m, d+1, d+1, 3): two batched matrix products, first over i with the s-bases stacked,
+    then over j with the t-bases stacked (an einsum over four indices is several times slower)."""
+    m, d = nets.shape[0], nets.shape[1] - 1
+    flat = nets.reshape(m, d + 1, 3 * (d + 1))
     if order == 0:
-        return (_apply(_bernstein(d, s), _bernstein(d, t), nets),)
-    bs, dbs, ddbs = basis_derivatives(d, s)
-    bt, dbt, ddbt = basis_derivatives(d, t)
-    along = lambda u: np.einsum("mi,mijc->mjc", u, nets)
-    t0, t1 = along(bs), along(dbs)
-    contract = lambda v, tmp: np.einsum("mj,mjc->mc", v, tmp)
-    out = (contract(bt, t0), contract(bt, t1), contract(dbt, t0))
+        along = np.matmul(_bernstein(d, s)[:, None, :], flat).reshape(m, d + 1, 3)
+        return (np.matmul(_bernstein(d, t)[:, None, :], along)[:, 0],)
+    k = order + 1
+    bs = np.stack(basis_derivatives(d, s)[:k], axis=1)  # (m, k, d+1): B, B', B''
+    bt = np.stack(basis_derivatives(d, t)[:k], axis=1)
+    along = np.matmul(bs, flat).reshape(m, k, d + 1, 3).transpose(0, 2, 1, 3).reshape(m, d + 1, 3 * k)
+    both = np.matmul(bt, along).reshape(m, k, k, 3)  # [m, t-derivative, s-derivative, c]
+    out = (both[:, 0, 0], both[:, 0, 1], both[:, 1, 0])
     if order == 1:
         return out
-    return out + (contract(bt, along(ddbs)), contract(dbt, t1), contract(ddbt, t0))
+    return out + (both[:, 0, 2], both[:, 1, 1], both[:, 2, 0])
 
 
 def evaluate(layout: PatchLayout, coefficients: np.ndarray, patch: np.ndarray, s: np.ndarray, t: np.ndarray, order: int = 0):
@@ -239,14 +238,31 @@ def project(
         return feet
     sp_, ss, st, spts = _samples(layout, coefficients, grid)
     k = min(candidates, sp_.size)
-    _, idx = cKDTree(spts).query(x, k=k)
-    idx = idx.reshape(m, k)
-    patch = sp_[idx].T.ravel()
-    s, t = ss[idx].T.ravel().copy(), st[idx].T.ravel().copy()
-    s, t, f = _refine(layout, coefficients, np.tile(x, (k, 1)), patch, s, t, iterations)
-    best = np.argmin(f.reshape(k, m), axis=0)
-    pick = best * m + np.arange(m)
-    return FootPoints(patch[pick], s[pick], t[pick], np.sqrt(f[pick]))
+    dist, idx = cKDTree(spts).query(x, k=k)
+    dist, idx = dist.reshape(m, k), idx.reshape(m, k)
+    # Candidates: the patches of the k nearest samples, each patch once, and only those that
+    # can hold the nearest point.  Every point of patch p lies within h_p (its largest
+    # distance between neighbouring samples) of a sample of p, so if p holds the foot y,
+    # its nearest sample is within |x - y| + h_p <= dist_0 + h_p of x (dist_0: the nearest
+    # sample's distance, itself a surface point's).
+    grid_pts = spts.reshape(layout.n_patches, grid, grid, 3)
+    spacing = np.maximum(
+        np.linalg.norm(np.diff(grid_pts, axis=1), axis=-1).max(axis=(1, 2)),
+        np.linalg.norm(np.diff(grid_pts, axis=2), axis=-1).max(axis=(1, 2)),
+    )
+    cand = sp_[idx]
+    keep = dist <= dist[:, :1] + spacing[cand]
+    for j in range(1, k):
+        keep[:, j] &= (cand[:, j : j + 1] != cand[:, :j]).all(axis=1)
+    keep[:, 0] = True
+    row, col = np.nonzero(keep)
+    patch = cand[row, col]
+    s, t = ss[idx[row, col]].copy(), st[idx[row, col]].copy()
+    s, t, f = _refine(layout, coefficients, x[row], patch, s, t, iterations)
+    # the best candidate per point (rows come sorted by point)
+    order = np.lexsort((f, row))
+    first = order[np.r_[True, row[order][1:] != row[order][:-1]]]
+    return FootPoints(patch[first], s[first], t[first], np.sqrt(f[first]))
 
 
 def boundary_sides(operator) -> np.ndarray:

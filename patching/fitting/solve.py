@@ -1,25 +1,39 @@
 """Control points by sparse least squares through M ([FSLYJ] sec. 4.1).
 
 The surface point at foot point (p, s, t) is S = sum_ij B_i(s) B_j(t) c_{p,ij}, and the
-coefficients are c = M P, so S = a^T P with a = M^T b, b the tensor Bernstein row of the
-point: the fit is linear in the control points P (n, 3).  With data points x_k, weights w_k
-and foot points held fixed, one step minimises
+coefficients are c = M P, so S_k = a_k^T P with a_k = M^T b_k, b_k the tensor Bernstein row of
+the point: the fit is linear in the control points P (n, 3).  With data points x_k, weights
+w_k and foot points held fixed, one step minimises
 
-    point distance (PDM):    sum_k w_k |S_k - x_k|^2
-    tangent distance (TDM):  sum_k w_k (S_k - x_k)^T Q_k (S_k - x_k),  Q_k = n_k n_k^T + alpha I
+    sum_k w_k (S_k - x_k)^T Q_k (S_k - x_k)  +  lambda |L (P - P_prev)|^2
 
-(n_k the unit surface normal at the foot point: the tangent-distance approximation of SDM,
-[PLH02]; alpha keeps a little of the point distance so the tangential motion stays bounded;
-the input's boundary vertices, held on the surface's boundary curves, keep Q_k = I)
-plus lambda |L (P - P_prev)|^2, L the umbrella Laplacian of the control mesh: a fairing of
-the step rather than of the shape, so that the system is well posed (L^T L adds a positive
-term on every direction that the data leave free) while the fixed point is the unbiased least
-squares solution, which is what lets a sampled nupatch surface be recovered exactly.
+with Q_k = I (point distance, PDM) or a symmetric positive semi-definite 3 x 3 matrix per point
+(the tangent distance TDM, Q = n n^T + alpha I, or the squared-distance model SDM with its
+curvature terms, ``fit.distance_models``).  L is the umbrella Laplacian of the control mesh: a
+fairing of the step rather than of the shape, so that the system is well posed (L^T L adds a
+positive term on every direction that the data leave free) while the fixed point is the
+unbiased least-squares solution, which is what lets a sampled nupatch surface be recovered
+exactly.
 
-The normal matrix is assembled as M^T G M with G the block-diagonal Gram matrix of the
-Bernstein rows per patch ((d+1)^2 blocks, summed over the points of each patch in chunks), so
-no (points x control points) matrix is formed; it is solved by sparse LU with a symmetric order (``_spd_solve``), the large TDM
-systems by conjugate gradients preconditioned with the n x n point-distance factor.
+Assembly (``LeastSquares``).  A patch's coefficients depend on a few control points only (its
+support, at most some 30 on the meshes measured), so per patch p the local design matrix is
+A_p = B_p M_p, B_p the Bernstein rows of the patch's points (k_p x (d+1)^2) and M_p the dense
+rows of M of the patch restricted to its support ((d+1)^2 x s_p); the normal matrix is the sum
+of the local products A_p^T diag(w Q_ab) A_p scattered into one sparse matrix whose pattern,
+the union of the supports' squares and of L^T L, depends on the topology only.  So the
+scatter map and the fill-reducing order are computed once per fit, and each step costs a few
+batched dense products and one ``bincount``.  The points of a patch are padded to a power of
+two (patches of similar point counts batched together, so padding wastes at most half).
+
+Solving.  PDM: the n x n system with three right-hand sides by sparse LU (SuperLU in the
+precomputed minimum-degree order with diagonal pivots: an LDL^T in effect; scipy has no sparse
+Cholesky).  TDM and SDM couple the coordinates: the 3n x 3n system, unknowns interleaved per
+control point (3 v + c).  Up to ``DIRECT_UNKNOWNS`` unknowns it is factored in the n x n order
+expanded (exact steps, which the recovery of a sampled surface needs); larger systems by
+conjugate gradients for the step P - P_prev, preconditioned by K (x) I3 with K the mean of the
+three diagonal blocks (one n x n factor; the 3n factor costs some 25 times more, and kept as a
+preconditioner across steps it had to be refactored nearly every step, since alpha changes
+tenfold per step).
 """
 
 from __future__ import annotations
@@ -28,23 +42,17 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator, cg, splu
 
-from .projection import FootPoints, PatchLayout, evaluate
+from ..bernstein import bernstein
+from .projection import FootPoints, PatchLayout
 
-__all__ = ["umbrella_laplacian", "bernstein_rows", "gram_blocks", "solve_step"]
+__all__ = ["umbrella_laplacian", "LeastSquares", "principal_curvatures", "distance_model"]
 
-#: TDM systems (3 n unknowns) above this size are solved by preconditioned CG (``solve_step``).
+#: Coupled (TDM, SDM) systems of at most this many unknowns are solved by their 3n factor.
 DIRECT_UNKNOWNS = 3000
-CG_TOLERANCE, CG_ITERATIONS = 1e-8, 300
-
-
-def _spd_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
-    """Solve the symmetric positive definite system by sparse LU with a symmetric
-    fill-reducing order (minimum degree on A + A^T) and diagonal pivots.  (Plain
-    Jacobi-preconditioned CG was tried for large systems: with the small step fairing the
-    system is ill-conditioned along the surface, and it took 4x longer than LU on the
-    100k-triangle benchmark; ``solve_step`` preconditions the large TDM systems better.)"""
-    lu = splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return lu.solve(np.asarray(rhs, dtype=np.float64))
+#: Larger ones by conjugate gradients for the step: tolerance relative to the residual at the
+#: previous points, most iterations (``LeastSquares.solve``).  An inexact step is safe: the
+#: alternation keeps a step only if the error falls.
+CG_TOLERANCE, CG_ITERATIONS = 1e-4, 200
 
 
 def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
@@ -56,119 +64,274 @@ def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
     return (sp.identity(n_vertices, format="csr") - sp.diags(1.0 / np.maximum(deg, 1.0)) @ adj).tocsr()
 
 
-def bernstein_rows(layout: PatchLayout, feet: FootPoints, d: int) -> tuple[np.ndarray, np.ndarray]:
-    """(points of degree-d patches (k,), their tensor Bernstein rows (k, (d+1)^2))."""
-    from ..bernstein import bernstein
-
-    sel = np.flatnonzero(layout.degree[feet.patch] == d)
-    bs, bt = bernstein(d, feet.s[sel]), bernstein(d, feet.t[sel])
-    return sel, (bs[:, :, None] * bt[:, None, :]).reshape(sel.size, -1)
+def _factor(matrix: sp.spmatrix):
+    """SuperLU of an SPD matrix already in its fill-reducing order: natural column order,
+    diagonal pivots, symmetric mode."""
+    return splu(sp.csc_matrix(matrix), permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
-def gram_blocks(layout: PatchLayout, feet: FootPoints, weights: list[np.ndarray], n_rows: int) -> list[sp.csr_matrix]:
-    """For each weight vector w (m,): the (rows, rows) block-diagonal G = B^T diag(w) B, one
-    (d+1)^2 block per patch, as batched products of the patches' point rows (zero-padded to
-    the largest point count of a patch)."""
-    out = [sp.csr_matrix((n_rows, n_rows)) for _ in weights]
-    for d in layout.degrees:
-        sel, rows = bernstein_rows(layout, feet, d)
-        if sel.size == 0:
-            continue
-        q = (d + 1) ** 2
-        patches = feet.patch[sel]
-        order = np.argsort(patches, kind="stable")
-        sel, rows, patches = sel[order], rows[order], patches[order]
-        uniq, first, count = np.unique(patches, return_index=True, return_counts=True)
-        local = np.repeat(np.arange(uniq.size), count)
-        pos = np.arange(sel.size) - np.repeat(first, count)
-        idx = layout.row[uniq][:, None] + np.arange(q)[None, :]
-        ii = np.repeat(idx, q, axis=1).ravel()
-        jj = np.tile(idx, (1, q)).ravel()
-        padded = np.zeros((uniq.size, int(count.max()), q))
-        padded[local, pos] = rows
-        for k, w in enumerate(weights):
-            wpad = np.zeros(padded.shape[:2])
-            wpad[local, pos] = w[sel]
-            blocks = np.matmul(padded.transpose(0, 2, 1), padded * wpad[:, :, None])
-            out[k] = out[k] + sp.csr_matrix((blocks.ravel(), (ii, jj)), shape=(n_rows, n_rows))
-    return out
+class LeastSquares:
+    """The least-squares steps of one fit (module docstring): built once from M, the patch
+    layout and L (topology only), then ``solve`` per alternation."""
+
+    def __init__(self, matrix: sp.csr_matrix, layout: PatchLayout, laplacian: sp.csr_matrix):
+        self.layout = layout
+        self.n = n = matrix.shape[1]
+        matrix = matrix.tocsr()
+        self.groups = {}
+        keys = []
+        for d in layout.degrees:
+            q = (d + 1) ** 2
+            patches = np.flatnonzero(layout.degree == d)
+            # the nonzeros of the patches' (d+1)^2 rows of M, as (patch, row, column, value)
+            rows = (layout.row[patches][:, None] + np.arange(q)[None, :]).ravel()
+            lengths = matrix.indptr[rows + 1] - matrix.indptr[rows]
+            entry = np.repeat(matrix.indptr[rows], lengths) + np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            owner = np.repeat(np.arange(rows.size), lengths)
+            gp, local_row, col = owner // q, owner % q, matrix.indices[entry]
+            key = np.unique(gp * n + col)  # each patch's support, sorted
+            kp = key // n
+            count = np.bincount(kp, minlength=patches.size)
+            s = max(1, int(count.max()))
+            start = np.cumsum(count) - count
+            support = np.zeros((patches.size, s), dtype=np.int64)
+            slot = np.arange(key.size) - start[kp]
+            support[kp, slot] = key % n
+            # padding: repeat the first support column (its M_p column stays zero)
+            pad = np.arange(s)[None, :] >= count[:, None]
+            support[pad] = np.broadcast_to(support[:, :1], support.shape)[pad]
+            local = np.zeros((patches.size, q, s))
+            local[gp, local_row, np.searchsorted(key, gp * n + col) - start[gp]] = matrix.data[entry]
+            self.groups[d] = (patches, support, local)
+            keys.append((support[:, :, None] * n + support[:, None, :]).ravel())
+        self.ltl = (laplacian.T @ laplacian).tocoo()
+        keys.append(self.ltl.row.astype(np.int64) * n + self.ltl.col)
+        unique, inverse = np.unique(np.concatenate(keys), return_inverse=True)
+        rows, cols = unique // n, unique % n
+        self.pattern = sp.csr_matrix((np.zeros(unique.size), cols, np.searchsorted(rows, np.arange(n + 1))), shape=(n, n))
+        self.nnz = unique.size
+        # scatter maps: each group's (P, s, s) local entries and L^T L's entries -> data index
+        self.maps, start = {}, 0
+        for d in layout.degrees:
+            size = keys[len(self.maps)].size
+            self.maps[d] = inverse[start : start + size]
+            start += size
+        self.ltl_map = inverse[start:]
+        self.ltl_trace = float(self.ltl.diagonal().mean())
+        self.diag = np.searchsorted(unique, np.arange(n, dtype=np.int64) * (n + 1))  # (v, v) entries
+        self.preconditioner = "scaled"
+        # the same pattern with 3 x 3 blocks, unknowns interleaved (3 v + c): entry k of row i
+        # (in-row offset o, row length r) -> 9 indptr[i] + 3 a r + 3 o + b for block (a, b)
+        indptr = self.pattern.indptr
+        rowlen = np.diff(indptr)
+        row_of = np.repeat(np.arange(n), rowlen)
+        offset = np.arange(self.nnz) - indptr[row_of]
+        ab = np.arange(3)
+        self.map3 = (9 * indptr[row_of][:, None, None] + 3 * ab[None, :, None] * rowlen[row_of][:, None, None]
+                     + 3 * offset[:, None, None] + ab[None, None, :])  # (nnz, 3, 3)
+        indptr3 = np.empty(3 * n + 1, dtype=np.int64)
+        indptr3[0] = 0
+        indptr3[1:] = 9 * indptr[np.repeat(np.arange(n), 3)] + 3 * rowlen.repeat(3) * np.tile(ab + 1, n)
+        indices3 = np.empty(9 * self.nnz, dtype=np.int64)
+        indices3[self.map3.ravel()] = (3 * self.pattern.indices[:, None, None] + ab[None, None, :] + 0 * ab[None, :, None]).ravel()
+        self.indptr3, self.indices3 = indptr3, indices3
+        self.order = None  # the n x n fill-reducing order, from the first system
+        self.factors = 0
+        self.cg_iterations = 0
+
+    # -- assembly -------------------------------------------------------------------------
+
+    def _local(self, feet: FootPoints):
+        """Per degree and point-count class: (group patch ids (P,), point ids (P, L), -1
+        padded, design matrices A (P, L, s))."""
+        out = []
+        for d, (patches, support, local) in self.groups.items():
+            sel = np.flatnonzero(self.layout.degree[feet.patch] == d)
+            if sel.size == 0:
+                continue
+            gpatch = np.searchsorted(patches, feet.patch[sel])
+            order = np.argsort(gpatch, kind="stable")
+            sel, gpatch = sel[order], gpatch[order]
+            uniq, first, count = np.unique(gpatch, return_index=True, return_counts=True)
+            width = 1 << np.ceil(np.log2(count)).astype(np.int64)
+            for w in np.unique(width):
+                cls = np.flatnonzero(width == w)
+                ids = np.full((cls.size, int(w)), -1, dtype=np.int64)
+                pos = np.arange(int(w))[None, :]
+                inside = pos < count[cls][:, None]
+                ids[inside] = sel[(first[cls][:, None] + pos)[inside]]
+                bs = bernstein(d, feet.s[np.maximum(ids, 0)].ravel())
+                bt = bernstein(d, feet.t[np.maximum(ids, 0)].ravel())
+                rows = (bs[:, :, None] * bt[:, None, :]).reshape(cls.size, int(w), -1)
+                rows[~inside] = 0.0
+                out.append((d, uniq[cls], ids, np.matmul(rows, local[uniq[cls]])))
+        return out
+
+    def _ordered(self, pdm: sp.csr_matrix) -> None:
+        if self.order is None:
+            # SuperLU factors Pr A Pc with Pc[i, perm_c[i]] = 1: the new order is perm_c's inverse
+            perm = splu(sp.csc_matrix(pdm), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                        options={"SymmetricMode": True}).perm_c
+            self.order = np.argsort(perm)
+
+    def solve(self, feet: FootPoints, data: np.ndarray, weights: np.ndarray, previous: np.ndarray,
+              fairing: float, quadratic: np.ndarray | None = None) -> np.ndarray:
+        """New control points (n, 3).  ``quadratic``: None for PDM, else (m, 3, 3) symmetric
+        Q_k (module docstring)."""
+        n = self.n
+        parts = self._local(feet)
+        data1 = np.zeros(self.nnz)
+        rhs = np.zeros((n, 3))
+        wx = weights[:, None] * (data if quadratic is None else np.einsum("kab,kb->ka", quadratic, data))
+        for d, gp, ids, a in parts:
+            w = np.where(ids >= 0, weights[np.maximum(ids, 0)], 0.0)
+            block = np.matmul(a.transpose(0, 2, 1), a * w[:, :, None])
+            data1 += np.bincount(self.maps[d].reshape(-1, *block.shape[1:])[gp].ravel(), weights=block.ravel(), minlength=self.nnz)
+            r = np.matmul(a.transpose(0, 2, 1), np.where((ids >= 0)[:, :, None], wx[np.maximum(ids, 0)], 0.0))
+            sup = 3 * self.groups[d][1][gp][:, :, None] + np.arange(3)[None, None, :]
+            rhs += np.bincount(sup.ravel(), weights=r.ravel(), minlength=3 * n).reshape(n, 3)
+        pdm = sp.csr_matrix((data1, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+        self._ordered(pdm)
+        ltl = np.bincount(self.ltl_map, weights=self.ltl.data, minlength=self.nnz)
+        lam = fairing * pdm.diagonal().mean() / max(self.ltl_trace, 1e-300)
+        fair_rhs = lam * (self.ltl.tocsr() @ previous)
+        if quadratic is None:
+            system = sp.csr_matrix((data1 + lam * ltl, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+            o = self.order
+            lu = _factor(system[o][:, o])
+            out = np.empty((n, 3))
+            out[o] = previous[o] + lu.solve(rhs[o] + fair_rhs[o] - system[o] @ previous)
+            return out
+        # 3n system: blocks (a, b) = sum_k w_k Q_k,ab a_k a_k^T, the six distinct ones
+        # assembled on the n x n pattern, then placed in the interleaved 3n pattern
+        pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+        blocks6 = np.zeros((6, self.nnz))
+        for d, gp, ids, a in parts:
+            safe = np.maximum(ids, 0)
+            wq = np.stack([quadratic[safe, i, j] for i, j in pairs], axis=-1) * np.where(ids >= 0, weights[safe], 0.0)[:, :, None]
+            s = a.shape[2]
+            weighted = (a[:, :, None, :] * wq[:, :, :, None]).reshape(a.shape[0], a.shape[1], 6 * s)
+            block = np.matmul(a.transpose(0, 2, 1), weighted).reshape(a.shape[0], s, 6, s)
+            idx = self.maps[d].reshape(-1, s, s)[gp][:, :, None, :] + self.nnz * np.arange(6)[None, None, :, None]
+            blocks6 += np.bincount(idx.ravel(), weights=block.ravel(), minlength=6 * self.nnz).reshape(6, self.nnz)
+        data3 = np.zeros(9 * self.nnz)
+        for k, (i, j) in enumerate(pairs):
+            data3[self.map3[:, i, j]] = blocks6[k] + (lam * ltl if i == j else 0.0)
+            data3[self.map3[:, j, i]] = blocks6[k] + (lam * ltl if i == j else 0.0)
+        system = sp.csr_matrix((data3, self.indices3, self.indptr3), shape=(3 * n, 3 * n))
+        # Conjugate gradients for the step from the previous points (the residual, not the
+        # right-hand side, sets the relative tolerance, so the step keeps its precision as the
+        # fit converges), preconditioned by K (x) I3, K the mean of the three diagonal blocks
+        # plus the fairing: one n x n factor in the fixed order instead of the 3n one.
+        x_prev = previous.ravel()
+        residual = (rhs + fair_rhs).ravel() - system @ x_prev
+        if 3 * n <= DIRECT_UNKNOWNS:  # small: the exact step by the 3n factor
+            o3 = (3 * self.order[:, None] + np.arange(3)[None, :]).ravel()
+            step = np.empty(3 * n)
+            step[o3] = _factor(system[o3][:, o3]).solve(residual[o3])
+            self.factors += 1
+            return (x_prev + step).reshape(n, 3)
+        o = self.order
+        if self.preconditioner == "kron":
+            scale = None
+            base = (blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl
+        else:
+            # B^1/2 (K (x) I3) B^1/2 with K the point-distance matrix plus the fairing and B_v
+            # the 3n system's diagonal 3 x 3 block at control point v over K_vv: it matches the
+            # diagonal blocks exactly (the normal stiffness and the small tangential one,
+            # alpha plus SDM's curvature terms) and K's coupling between control points
+            base = data1 + lam * ltl
+            blocks = data3[self.map3[self.diag]]  # (n, 3, 3)
+            value, vector = np.linalg.eigh(blocks / base[self.diag][:, None, None])
+            scale = np.einsum("nij,nj,nkj->nik", vector, 1.0 / np.sqrt(np.maximum(value, 1e-300)), vector)
+        lu = _factor(sp.csr_matrix((base, self.pattern.indices, self.pattern.indptr), shape=(n, n))[o][:, o])
+        self.factors += 1
+
+        def precondition(r):
+            r = np.asarray(r).reshape(n, 3)
+            if scale is not None:
+                r = np.einsum("nij,nj->ni", scale, r)
+            z = np.empty((n, 3))
+            z[o] = lu.solve(np.ascontiguousarray(r[o]))
+            if scale is not None:
+                z = np.einsum("nij,nj->ni", scale, z)
+            return z.ravel()
+
+        steps = [0]
+
+        def count(_):
+            steps[0] += 1
+
+        pre = LinearOperator(system.shape, matvec=precondition)
+        x, _ = cg(system, residual, rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS, M=pre, callback=count)
+        self.cg_iterations += steps[0]
+        return (x_prev + x).reshape(n, 3)
 
 
-def _bt_times(layout: PatchLayout, feet: FootPoints, values: np.ndarray, n_rows: int) -> np.ndarray:
-    """B^T values: (rows, c) for values (m, c)."""
-    out = np.zeros((n_rows, values.shape[1]))
-    for d in layout.degrees:
-        sel, rows = bernstein_rows(layout, feet, d)
-        if sel.size == 0:
-            continue
-        idx = layout.row[feet.patch[sel]][:, None] + np.arange((d + 1) ** 2)[None, :]
-        for c in range(values.shape[1]):
-            out[:, c] += np.bincount(idx.ravel(), weights=(rows * values[sel, c][:, None]).ravel(), minlength=n_rows)
-    return out
+def principal_curvatures(su: np.ndarray, sv: np.ndarray, suu: np.ndarray, suv: np.ndarray, svv: np.ndarray):
+    """Unit normal n = S_s x S_t / |.|, principal curvatures (m, 2) and unit principal
+    directions (m, 2, 3) from the first and second derivatives.  Curvature kappa > 0 where the
+    surface bends towards n (the centre of curvature at S + n / kappa).  In the orthonormal
+    tangent frame (t1 = S_s / |S_s|, t2 = n x t1) with J the 2 x 2 coordinates of (S_s, S_t),
+    the shape operator is J^-T II J^-1, II = [[S_ss.n, S_st.n], [S_st.n, S_tt.n]]: symmetric,
+    so ``eigh`` gives the principal pairs."""
+    n = np.cross(su, sv)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    t1 = su / np.maximum(np.linalg.norm(su, axis=1, keepdims=True), 1e-300)
+    t2 = np.cross(n, t1)
+    jac = np.zeros((su.shape[0], 2, 2))
+    jac[:, 0, 0] = np.einsum("ij,ij->i", su, t1)
+    jac[:, 0, 1] = np.einsum("ij,ij->i", sv, t1)
+    jac[:, 1, 1] = np.einsum("ij,ij->i", sv, t2)
+    second = np.empty((su.shape[0], 2, 2))
+    second[:, 0, 0] = np.einsum("ij,ij->i", suu, n)
+    second[:, 0, 1] = second[:, 1, 0] = np.einsum("ij,ij->i", suv, n)
+    second[:, 1, 1] = np.einsum("ij,ij->i", svv, n)
+    det = jac[:, 0, 0] * jac[:, 1, 1]
+    det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+    inv = np.zeros_like(jac)  # J is upper triangular
+    inv[:, 0, 0] = jac[:, 1, 1] / det
+    inv[:, 0, 1] = -jac[:, 0, 1] / det
+    inv[:, 1, 1] = jac[:, 0, 0] / det
+    shape = np.matmul(inv.transpose(0, 2, 1), np.matmul(second, inv))
+    shape = 0.5 * (shape + shape.transpose(0, 2, 1))
+    kappa, vec = np.linalg.eigh(shape)
+    directions = vec[:, 0, :, None] * t1[:, None, :] + vec[:, 1, :, None] * t2[:, None, :]
+    return n, kappa, directions
 
 
-def solve_step(
-    matrix: sp.csr_matrix,
-    layout: PatchLayout,
-    feet: FootPoints,
-    data: np.ndarray,
-    weights: np.ndarray,
-    previous: np.ndarray,
-    laplacian: sp.csr_matrix,
-    fairing: float,
-    method: str = "pdm",
-    alpha: float = 1e-7,
-    point_distance: np.ndarray | None = None,
-) -> np.ndarray:
-    """New control points (n, 3) for fixed foot points (module docstring)."""
-    n_rows, n = matrix.shape
-    mt = matrix.T.tocsr()
-    ltl = (laplacian.T @ laplacian).tocsr()
-    if method == "pdm":
-        (g,) = gram_blocks(layout, feet, [weights], n_rows)
-        normal = (mt @ g @ matrix).tocsr()
-        lam = fairing * normal.diagonal().mean() / max(ltl.diagonal().mean(), 1e-300)
-        rhs = mt @ _bt_times(layout, feet, weights[:, None] * data, n_rows) + lam * (ltl @ previous)
-        return _spd_solve(normal + lam * ltl, rhs).reshape(n, 3)
-    if method != "tdm":
-        raise ValueError(f"method must be 'pdm' or 'tdm', not {method!r}")
-    coefficients = matrix @ previous
-    _, su, sv = evaluate(layout, coefficients, feet.patch, feet.s, feet.t, order=1)
-    nrm = np.cross(su, sv)
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
-    # Points held to the open boundary (``point_distance``: the input's boundary vertices,
-    # their feet on the surface's boundary curves) keep the point distance, Q = I: their
-    # residual runs along the surface, which the tangent distance would ignore.
-    off = np.zeros(feet.patch.size, dtype=bool) if point_distance is None else np.asarray(point_distance, dtype=bool)
-    iso = np.where(off, 1.0, alpha)
-    pairs = [(a, b) for a in range(3) for b in range(a, 3)]
-    ws = [weights * nrm[:, a] * nrm[:, b] for a, b in pairs] + [weights * iso]
-    grams = gram_blocks(layout, feet, ws, n_rows)
-    iso_block = mt @ grams[-1] @ matrix
-    blocks = [[None] * 3 for _ in range(3)]
-    for (a, b), g in zip(pairs, grams[:-1]):
-        block = mt @ g @ matrix
-        if a == b:
-            block = block + iso_block
-        blocks[a][b] = block
-        blocks[b][a] = block if a == b else block
-    normal = sp.bmat(blocks, format="csr")
-    lam = fairing * normal.diagonal().mean() / max(ltl.diagonal().mean(), 1e-300)
-    qx = weights[:, None] * (nrm * np.einsum("ij,ij->i", nrm, data)[:, None] + iso[:, None] * data)
-    rhs = (mt @ _bt_times(layout, feet, qx, n_rows)).T.ravel()
-    fair = sp.block_diag([ltl] * 3, format="csr")
-    rhs = rhs + lam * (fair @ previous.T.ravel())
-    system = normal + lam * fair
-    if system.shape[0] <= DIRECT_UNKNOWNS:
-        solution = _spd_solve(system, rhs)
+def distance_model(method: str, surface_points: np.ndarray, derivatives: tuple, data: np.ndarray,
+                   alpha: float, point_distance: np.ndarray | None = None) -> np.ndarray:
+    """(m, 3, 3) Q_k of the squared-distance model at each foot point:
+
+    TDM: Q = n n^T + alpha I (the tangent distance; alpha a Levenberg-Marquardt-like share of
+    the point distance that bounds the tangential motion).
+    SDM ([PLH02], [FSLYJ]'s [31]; the curvature-based form and safeguard of [WPL06]):
+    the second-order approximation of the squared distance to the surface near the foot point,
+    Q = n n^T + sum_i c_i e_i e_i^T + alpha I with the principal directions e_i, curvatures
+    kappa_i and the signed distance d = (x - S).n: c_i = d kappa_i / (d kappa_i - 1), i.e.
+    d / (d - rho_i) with rho_i = 1 / kappa_i the signed radius, where d kappa_i < 0 (the point
+    on the side away from the centre of curvature); c_i = 0 otherwise (the safeguard for points
+    between the surface and the centre or beyond it, where the model is not convex: the tangent
+    distance there).  Reconstructed from the squared distance (r - R)^2 to a circle of radius R:
+    at distance r from the centre half its Hessian has the tangential part (r - R) / r, and
+    r = R - d gives d / (d - R); checked in the tests against central differences of the exact
+    squared distance to a sphere, outside (equal) and inside (the safeguard).
+    Rows of ``point_distance`` (points held to the open boundary) keep Q = I."""
+    su, sv = derivatives[0], derivatives[1]
+    if method == "tdm":
+        n = np.cross(su, sv)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        q = n[:, :, None] * n[:, None, :]
+    elif method == "sdm":
+        n, kappa, e = principal_curvatures(*derivatives)
+        d = np.einsum("ij,ij->i", data - surface_points, n)
+        dk = d[:, None] * kappa
+        c = np.where(dk < 0.0, dk / (dk - 1.0), 0.0)
+        q = n[:, :, None] * n[:, None, :] + np.einsum("mi,mia,mib->mab", c, e, e)
     else:
-        # Large: conjugate gradients from the previous points, preconditioned by the
-        # coordinate-blind matrix K (x) I3, K the mean of the three diagonal blocks: one LU of
-        # size n instead of 3n (whose fill made it 20x dearer).  T <= (1 + alpha) K-ish and
-        # T >= alpha K-ish, so CG needs some sqrt(1/alpha) steps; stopped early it still lowers
-        # the step's objective, and the alternation keeps a TDM step only if E falls.
-        k = ((blocks[0][0] + blocks[1][1] + blocks[2][2]) / 3.0 + lam * ltl).tocsc()
-        lu = splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        pre = LinearOperator(system.shape, matvec=lambda r: lu.solve(np.asarray(r).reshape(3, n).T).T.ravel())
-        solution, _ = cg(system, rhs, x0=previous.T.ravel(), rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS, M=pre)
-    return np.asarray(solution).reshape(3, n).T.copy()
+        raise ValueError(f"method must be 'tdm' or 'sdm', not {method!r}")
+    q = q + alpha * np.eye(3)[None]
+    if point_distance is not None:
+        q[np.asarray(point_distance, dtype=bool)] = np.eye(3)
+    return q
