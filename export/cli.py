@@ -277,6 +277,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     from export.render import render, sample_shape
     from export.tolerances import RENDER_RELATIVE
 
+    if args.normals:  # a subdivided mesh drawn with its normals
+        from export.render_subdivided import run_render_subdivided
+
+        return run_render_subdivided(args, _size(args.size), _progress)
     source = Path(args.source)
     out = Path(args.output) if args.output else source.with_suffix(".png")
     if out.resolve() == source.resolve():
@@ -465,6 +469,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     add_intervals_argument(p)
+    from export.render_subdivided import add_arguments as _add_subdivided_render
+
+    _add_subdivided_render(p)
     p.set_defaults(func=cmd_render)
 
     from export import cli_curve

@@ -130,3 +130,25 @@ def test_corner_regions_equal_connected_components():
         n, want = connected_components(g, directed=False)
         assert np.array_equal(label, want) and rv.size == n
         assert np.array_equal(rv[label], topo.origin)
+
+
+def test_limit_normal_oriented_by_the_ring_where_the_ring_folds():
+    """Three edges of sharpness 4 around a tetrahedron's face, 4 steps: the crease has just
+    decayed and the corners' rings fold over.  Their limit normals point to the faces' side
+    of the surface refined further (the mean of the refined ring's face normals), not to
+    the side a single folded facet of the level would pick."""
+    from patching.loop import loop_subdivide
+    from patching.shading import shading_operator
+
+    v = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], float)
+    tet = patching.from_arrays(v, [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]],
+                               creases={(0, 1): 4.0, (1, 2): 4.0, (0, 2): 4.0})
+    op = shading_operator(tet, 4, "loop", "limit")
+    nl = op.limit.normals(op.mesh.vertices)
+    fine = loop_subdivide(op.mesh, 3)
+    t = Topology(fine)
+    for vid in range(4):
+        h = np.flatnonzero(t.origin == vid)
+        p = fine.vertices
+        n = np.cross(p[t.dest[h]] - p[vid], p[t.origin[t.prev[h]]] - p[vid]).sum(axis=0)
+        assert nl[op.region_vertex == vid] @ (n / np.linalg.norm(n)) > 0.999

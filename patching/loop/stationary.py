@@ -366,11 +366,12 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
         if not loop:
             plain &= ~nb_tagged[v]
         # facet pairs (orientation, approximate normals): per face i of the ring (plain
-        # vertices, one region and never approximate: their first face only)
+        # vertices, one region and never approximate: their first face only; none for Loop's
+        # plain vertices, whose cos/sin tangents are oriented by the ring's order)
         for i in range(k):
             j = (i + 1) % m
             pairs = [(1 + i, 1 + j)] if loop else [(1 + i, 1 + m + i), (1 + m + i, 1 + j)]
-            wv = np.flatnonzero(wanted & (~plain if i else True))
+            wv = np.flatnonzero(wanted & (~plain if (i or loop) else True))
             for p, q in pairs:
                 idx = np.arange(wv.size) + n_facets
                 n_facets += wv.size
@@ -386,6 +387,10 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
             pos.add(v[grp, None], cols[grp], np.concatenate([[1 - n * ew], np.full(k, ew)])[None])
             th = 2 * np.pi * np.arange(k) / k
             gw = grp[wanted[grp]]
+            # oriented by the ring's order, not by a facet: the fans run so that (sum cos E)
+            # x (sum sin E) points to the faces' side (on a flat regular ring, the faces'
+            # normal; checked on every loop_* shape against the facet-oriented normals);
+            # a facet flips it where the level's ring folds over (a crease just decayed)
             ta.add(reg[gw, None], cols[gw, 1:], np.cos(th)[None])
             tb.add(reg[gw, None], cols[gw, 1:], np.sin(th)[None])
         elif grp.size:
