@@ -51,7 +51,7 @@ def _shape_text(shapes: Path, name: str) -> str | None:
     h = shapes / f"{name}.h"
     if not h.is_file():
         return None
-    lines = re.findall(r'^"(.*)"\s*;?\s*$', h.read_text(), flags=re.M)
+    lines = re.findall(r'^"(.*)"\s*;?\s*$', h.read_text(), flags=re.MULTILINE)
     return "".join(line.encode().decode("unicode_escape") for line in lines)
 
 
@@ -78,9 +78,9 @@ def compare(name: str, text: str, files: list[Path]) -> list[tuple]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mesh = parse_obj(text, source=f"{name}.h", name=name)
-    if not re.search(r"^t\s+interpolateboundary", text, flags=re.M):
+    if not re.search(r"^t\s+interpolateboundary", text, flags=re.MULTILINE):
         mesh = dataclasses.replace(mesh, interpolate_boundary=2)
-    method = "chaikin" if re.search(r"^t\s+creasemethod\s+\S+\s+chaikin", text, flags=re.M) else "uniform"
+    method = "chaikin" if re.search(r"^t\s+creasemethod\s+\S+\s+chaikin", text, flags=re.MULTILINE) else "uniform"
     size = float(np.ptp(mesh.vertices, axis=0).max())
     rows = []
     cur = mesh
@@ -91,7 +91,7 @@ def compare(name: str, text: str, files: list[Path]) -> list[tuple]:
         if bv.shape != ours.shape:
             rows.append((level, ours.shape[0], float("nan"), float("nan"), f"{bv.shape[0]} baseline vertices"))
             continue
-        dist, idx = cKDTree(bv).query(ours)
+        _, idx = cKDTree(bv).query(ours)
         one_to_one = np.unique(idx).size == idx.size
         mine = sorted(_canonical([int(idx[x]) for x in cur.face(i)]) for i in range(cur.n_faces))
         theirs = sorted(_canonical(face) for face in bf)
@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         files = sorted(args.baseline.glob(f"{name}_level*.obj"), key=lambda p: int(p.stem.rsplit("level", 1)[1]))
         for level, n, d, rel, ok in compare(name, text, files):
-            worst = max(worst, rel) if rel == rel else worst
+            worst = worst if np.isnan(rel) else max(worst, rel)
             print(f"{name:28s} {level:5d} {n:8d} {d:11.3e} {rel:10.3e}  {ok}")
     print(f"largest relative difference: {worst:.3e}")
     return 0

@@ -33,15 +33,15 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import PolyCollection
 
-import patching  # noqa: E402
-from export.atomic import atomic_output  # noqa: E402
-from export.render import AZIMUTH, ELEVATION  # noqa: E402
-from export.render_subdivided import render_subdivided  # noqa: E402
-from patching.shading import shading_operator  # noqa: E402
+import patching
+from export.atomic import atomic_output
+from export.render import AZIMUTH, ELEVATION
+from export.render_subdivided import render_subdivided
+from patching.shading import shading_operator
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "figures"
 SHAPES = Path("/work/shared/opensubdiv-shapes")

@@ -29,7 +29,7 @@ from .atomic import atomic_output, check_output_path
 from .render import Sampled, render
 from .subdivided import split_by_normal
 
-__all__ = ["NORMALS", "subdivided_sampled", "render_subdivided", "run_render_subdivided"]
+__all__ = ["NORMALS", "render_subdivided", "run_render_subdivided", "subdivided_sampled"]
 
 #: ``--normals`` of ``render``: face normals, limit normals, subdivision shading.
 NORMALS = ("flat", "limit", "shading")
