@@ -63,7 +63,6 @@ def test_cli_draws_a_subdivided_mesh(tmp_path, run_cli, cube):
 @pytest.mark.parametrize("args, fragment", [
     (("-n", "0", "--normals", "limit"), "-n must be a number of steps >= 1"),
     (("--normals", "limit", "--curvature"), "--curvature is not drawn"),
-    (("--normals", "limit", "--scheme", "loop"), "triangles only"),
     (("--normals", "limit", "-o", "{tmp}/x.jpg"), "must end in .png"),
 ])
 def test_cli_bad_subdivided_render(tmp_path, run_cli, cube, args, fragment):

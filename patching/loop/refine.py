@@ -287,11 +287,9 @@ def child_topology(t: Topology, child: ControlMesh) -> Topology:
     c.n_faces, c.n_vertices = 4 * nf, nvc
     c.origin = child.face_vertices.astype(np.int64)
     h = np.arange(H, dtype=np.int64)
-    c.face = h // 3
-    local = h - 3 * c.face
-    base = h - local
-    c.next = base + np.where(local == 2, 0, local + 1)
-    c.prev = base + np.where(local == 0, 2, local - 1)
+    c.face = np.repeat(np.arange(4 * nf, dtype=np.int64), 3)
+    c.next = h + np.tile(np.array([1, 1, -2], np.int64), 4 * nf)
+    c.prev = h + np.tile(np.array([2, -1, -1], np.int64), 4 * nf)
     c.dest = c.origin[c.next]
     # candidate edges: half k of parent edge e (2 e + k), then inner edge i of face f
     pe = t.edge_of.reshape(nf, 3)  # e_i of face f
