@@ -152,3 +152,14 @@ def test_limit_normal_oriented_by_the_ring_where_the_ring_folds():
         p = fine.vertices
         n = np.cross(p[t.dest[h]] - p[vid], p[t.origin[t.prev[h]]] - p[vid]).sum(axis=0)
         assert nl[op.region_vertex == vid] @ (n / np.linalg.norm(n)) > 0.999
+
+
+def test_folded_corner_ring_keeps_the_global_orientation():
+    """The case hypothesis found: a jittered open grid, a corner of three sharp edges whose
+    level-0 ring folds over, a semi-sharp edge elsewhere.  Its normal (oriented by a facet)
+    is taken at the global path's level, not at level 0 where the facet points the other way."""
+    v, f = _quad_grid(3)
+    v = v + 0.05 * np.random.default_rng(30544).standard_normal(v.shape)
+    mesh = patching.from_arrays(v, f, creases={(1, 5): 10.0, (4, 5): 10.0, (5, 9): 10.0, (14, 15): 0.25},
+                                interpolate_boundary=0)
+    _same(mesh, "catmark")

@@ -17,7 +17,9 @@ Readiness.  B stays the same at every later step once no vertex of v's 1-ring ha
 semi-sharp incident edge and none is a semi-sharp corner (then every rule it reads is final):
 v's limit point and tangents are read at that level (a ring that lists a vertex twice, faces
 back to back, waits a step: its children's rings are distinct), ``l . R_j = l . R_k`` for any later level
-k since ``l B = lambda l``.  The regions whose normal is ``approximate`` (the sum of facet
+k since ``l B = lambda l``.  Vertices whose normal is oriented by a facet of the level (all
+but ``stationary.plain_vertices``, whose tangents are oriented by the ring's order: a ring that
+folds over at a coarse level would flip them) and the regions whose normal is ``approximate`` (the sum of facet
 normals at the ring's limit points, which depends on the level) are only taken at the level
 where the whole mesh would be stationary (``decay``, the global path's level), so the result
 equals the global path's (``refine="global"``: the whole mesh refined ``decay`` times) up to
@@ -35,7 +37,7 @@ from ..mesh import ControlMesh
 from ..topology import Topology
 from .cache import topology_of
 from .rules import INFINITE
-from .stationary import concat_masks, regions_of, select_regions, stationary_masks
+from .stationary import concat_masks, plain_vertices, regions_of, select_regions, stationary_masks
 
 __all__ = ["LocalScheme", "local_limit", "local_rows", "ring_faces", "submesh"]
 
@@ -214,6 +216,9 @@ def local_limit(mesh: ControlMesh, scheme: LocalScheme, decay: int):
         else:
             ready = ~_unsettled(cur, topo, scheme.name)[tv]
             ready[ready] = ~_repeated_ring(topo, scheme.name, tv[ready])
+            # normals oriented by a facet of the level (feature vertices) wait for the final
+            # level too: a ring that folds over at a coarse level would flip them
+            ready &= plain_vertices(cur, topo, scheme.name)[tv] | ~topo.vertex_is_used[tv]
         if ready.any():
             masks = stationary_masks(cur, topo, _rows_of(cur, topo, scheme), scheme.name, targets=tv[ready])
             if not final and masks.approximate.any():

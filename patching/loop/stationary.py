@@ -46,7 +46,7 @@ from scipy.sparse.csgraph import connected_components
 from .cache import topology_of
 from .rules import CORNER, DART, SMOOTH, loop_limit_edge_weight, vertex_rule
 
-__all__ = ["StationaryMasks", "corner_regions", "stationary_masks", "evaluate_normals", "level_rules", "concat_masks", "regions_of"]
+__all__ = ["StationaryMasks", "corner_regions", "stationary_masks", "evaluate_normals", "level_rules", "concat_masks", "regions_of", "plain_vertices"]
 
 _TIE = 1e-8
 
@@ -279,6 +279,34 @@ class _Rows:
         return m
 
 
+def plain_vertices(mesh, topo, scheme: str) -> np.ndarray:
+    """(v,) bool: interior smooth vertices with regular faces and no sharp edge (Catmull-Clark:
+    and no tagged vertex on their faces), whose normal is oriented by the ring's order."""
+    nv = topo.n_vertices
+    sharp, rule = level_rules(mesh, topo)
+    regular = 3 if scheme == "loop" else 4
+    bad_face = np.zeros(nv, bool)
+    bad_face[topo.origin[np.diff(mesh.face_offsets)[topo.face] != regular]] = True
+    plain = ~topo.vertex_is_boundary & (rule == SMOOTH) & ~bad_face
+    plain &= np.bincount(topo.edges[sharp].ravel(), minlength=nv) == 0
+    if scheme != "loop":
+        tagged_e = rule[topo.origin] != SMOOTH
+        nb = np.zeros(nv, bool)
+        nb[topo.dest[tagged_e]] = True
+        nb[topo.origin[tagged_e[topo.next[topo.next]]]] = True
+        plain &= ~nb
+    return plain
+
+
+def _flat_ring(k: int) -> np.ndarray:
+    """(2k + 1, 3) a flat regular Catmull-Clark 1-ring in the fans' order: v, the spoke ends
+    counter-clockwise seen from the faces' side, then the far corners between them."""
+    t = 2 * np.pi * np.arange(k) / k
+    e = np.stack([np.cos(t), np.sin(t), 0 * t], 1)
+    f = np.sqrt(2) * np.stack([np.cos(t + np.pi / k), np.sin(t + np.pi / k), 0 * t], 1)
+    return np.vstack([np.zeros((1, 3)), e, f])
+
+
 def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = None) -> StationaryMasks:
     """Limit and normal masks at every vertex of a stationary level (module docstring).
 
@@ -328,10 +356,7 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
     if not loop:
         nb_tagged[topo.origin[tagged_e[topo.next[topo.next]]]] = True
     # plain vertices (the fans' test below, per vertex): their blocks are shared by valence
-    plain_v = ~topo.vertex_is_boundary & (rule == SMOOTH) & ~bad_face
-    plain_v &= np.bincount(topo.edges[sharp].ravel(), minlength=nv) == 0
-    if not loop:
-        plain_v &= ~nb_tagged
+    plain_v = plain_vertices(mesh, topo, scheme)
     if callable(S):
         read = np.flatnonzero(used & ~plain_v)
         if not loop:
@@ -365,9 +390,9 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
         plain = (not boundary) & (rule[v] == SMOOTH) & ~bad_face[v] & ~spoke_sharp.any(axis=1)
         if not loop:
             plain &= ~nb_tagged[v]
-        # facet pairs (orientation, approximate normals): per face i of the ring (plain
-        # vertices, one region and never approximate: their first face only; none for Loop's
-        # plain vertices, whose cos/sin tangents are oriented by the ring's order)
+        # facet pairs (orientation, approximate normals): per face i of the ring; plain
+        # vertices' tangents are oriented by the ring's order (below), their first facet is
+        # kept only where the pair is not unique (Catmull-Clark, ``approximate``)
         for i in range(k):
             j = (i + 1) % m
             pairs = [(1 + i, 1 + j)] if loop else [(1 + i, 1 + m + i), (1 + m + i, 1 + j)]
@@ -399,6 +424,12 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
             lim, pair = _analyse(block)
             pos.add(v[grp, None], cols[grp], lim[None])
             gw = grp[wanted[grp]]
+            if pair is not None:
+                # oriented by the ring's order: on a flat regular ring the pair's normal must
+                # point to the faces' side (+z), as Loop's cos/sin pair does
+                R = _flat_ring(k)
+                if cross((pair[0] @ R)[None], (pair[1] @ R)[None])[0, 2] < 0:
+                    pair = np.stack([pair[0], -pair[1]])
             if pair is None:
                 approx[reg[gw]] = True
             else:
@@ -451,6 +482,7 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
     keep = np.zeros(freg_a.size, bool)
     _, first_idx = np.unique(freg_a, return_index=True)
     keep[first_idx] = True
+    keep &= ~plain_v[region_vertex[freg_a]]  # oriented by the ring's order
     keep |= approx[freg_a]
     sel = np.flatnonzero(keep)
     freg_a = freg_a[sel]
