@@ -37,7 +37,13 @@ from ..mesh import ControlMesh
 from ..topology import Topology
 from .cache import topology_of
 from .rules import INFINITE
-from .stationary import concat_masks, plain_vertices, regions_of, select_regions, stationary_masks
+from .stationary import (
+    concat_masks,
+    plain_vertices,
+    regions_of,
+    select_regions,
+    stationary_masks,
+)
 
 __all__ = ["LocalScheme", "local_limit", "local_rows", "ring_faces", "submesh"]
 
