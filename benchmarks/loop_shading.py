@@ -2,6 +2,12 @@
 product rate (operator reused).  Prints figures; run by hand:
 
     PYTHONPATH=. python benchmarks/loop_shading.py
+    PYTHONPATH=. python benchmarks/loop_shading.py --baseline /path/to/other/checkout [--rounds 3]
+
+With ``--baseline`` the same measurements run alternately in fresh processes on this checkout
+and on the other one (its ``patching`` package: e.g. ``git archive main | tar -x -C DIR``), so
+that both see the same load on a shared machine; each figure is the best of the rounds, wall
+clock and process CPU time.
 
 Control mesh: a triangulated torus of 20 x 10 quads (400 triangles) with every fifth diagonal
 flipped (valence-5 and -7 vertices) and a ring of infinitely sharp and semi-sharp (s = 1.5)
@@ -11,7 +17,13 @@ N_S (b > 0) at level 4, [ZBK] sec. 5, with blending seeded at level 1 and at lev
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -34,19 +46,21 @@ def torus(n=20, m=10):
 
 
 def best(f, repeat=3):
-    times = []
+    """(best wall time, best CPU time, result) of ``repeat`` calls."""
+    wall, cpu = [], []
     for _ in range(repeat):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = f()
-        times.append(time.perf_counter() - t)
-    return min(times), out
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    return min(wall), min(cpu), out
 
 
-def main() -> None:
+def measure() -> dict:
+    """Seconds (wall, cpu) of each build and product, and the counts printed with them."""
     mesh = torus()
     levels = 4
-    faces_out = mesh.n_faces * 4**levels
-    print(f"control mesh: {mesh.n_faces} triangles; {levels} Loop steps: {faces_out:,} triangles")
+    res = {"faces": mesh.n_faces * 4**levels, "control": mesh.n_faces}
 
     def geometry_only():
         m, S_total = mesh, None
@@ -55,22 +69,62 @@ def main() -> None:
             S_total = S if S_total is None else (S @ S_total).tocsr()
         return S_total
 
-    t_geo, S_total = best(geometry_only)
-    t_prod, _ = best(lambda: S_total @ mesh.vertices, 10)
-    print(f"Loop operator ({levels} steps, composed): built in {t_geo:.3f} s = {faces_out / t_geo:,.0f} output faces/s")
-    print(f"Loop product S @ P: {t_prod * 1e3:.2f} ms = {faces_out / t_prod:,.0f} output faces/s")
+    *res["loop build"], S_total = best(geometry_only)
+    *res["loop product"], _ = best(lambda: S_total @ mesh.vertices, 10)
     for mode in ("limit", "shading"):
-        t_op, op = best(lambda: shading_operator(mesh, levels, "loop", normals=mode), 2)
-        t_ev, out = best(lambda: op.evaluate(mesh.vertices), 5)
-        print(f"{mode:8s}: operator built in {t_op:.3f} s = {faces_out / t_op:,.0f} output faces/s; "
-              f"evaluate (points + normals) {t_ev * 1e3:.1f} ms = {faces_out / t_ev:,.0f} output faces/s; "
-              f"{out.normals.shape[0]:,} normals for {out.points.shape[0]:,} vertices")
+        *res[f"{mode} build"], op = best(lambda: shading_operator(mesh, levels, "loop", normals=mode), 2)
+        *res[f"{mode} evaluate"], out = best(lambda: op.evaluate(mesh.vertices), 5)
+        res["normals"], res["vertices"] = int(out.normals.shape[0]), int(out.points.shape[0])
     op1 = shading_operator(mesh, levels, "loop")
     op4 = shading_operator(mesh, levels, "loop", blend_level=4)
-    n = op1.mesh.n_vertices
-    print(f"vertices needing N_S at level 4 (b > 0): seeded at level 1 {np.count_nonzero(op1.blend > 0):,} "
-          f"({np.mean(op1.blend > 0):.1%}), seeded at level 4 {np.count_nonzero(op4.blend > 0):,} "
-          f"({np.mean(op4.blend > 0):.1%}) of {n:,}")
+    res["n"] = int(op1.mesh.n_vertices)
+    res["b1"], res["b4"] = int(np.count_nonzero(op1.blend > 0)), int(np.count_nonzero(op4.blend > 0))
+    return res
+
+
+KEYS = ("loop build", "loop product", "limit build", "limit evaluate", "shading build", "shading evaluate")
+
+
+def report(res: dict, label: str = "") -> None:
+    f = res["faces"]
+    print(f"{label}control mesh: {res['control']} triangles; 4 Loop steps: {f:,} triangles")
+    for key in KEYS:
+        wall, cpu = res[key]
+        print(f"{label}{key:17s} {wall * 1e3:9.1f} ms wall = {f / wall:12,.0f} output faces/s;"
+              f" {cpu * 1e3:9.1f} ms CPU = {f / max(cpu, 1e-9):12,.0f} faces/s")
+    print(f"{label}{res['normals']:,} normals for {res['vertices']:,} vertices; vertices needing N_S at level 4"
+          f" (b > 0): seeded at level 1 {res['b1']:,} ({res['b1'] / res['n']:.1%}), seeded at level 4"
+          f" {res['b4']:,} ({res['b4'] / res['n']:.1%}) of {res['n']:,}")
+
+
+def _run(path: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=path)
+    out = subprocess.run([sys.executable, __file__, "--json"], env=env, check=True, capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", help="another checkout to measure alternately with this one")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.json:
+        print(json.dumps(measure()))
+        return
+    if not args.baseline:
+        report(measure())
+        return
+    here = str(Path(__file__).resolve().parent.parent)
+    runs = {"before": [], "after": []}
+    for _ in range(args.rounds):
+        runs["before"].append(_run(str(Path(args.baseline).resolve())))
+        runs["after"].append(_run(here))
+    for label, rs in runs.items():
+        merged = dict(rs[0])
+        for key in KEYS:
+            merged[key] = [min(r[key][0] for r in rs), min(r[key][1] for r in rs)]
+        report(merged, f"{label:6s} | ")
 
 
 if __name__ == "__main__":

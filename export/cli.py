@@ -303,6 +303,10 @@ def _size(text: str) -> tuple[int, int]:
 def cmd_render(args: argparse.Namespace) -> int:
     from export.cli_render import run
 
+    if args.normals:  # a subdivided mesh drawn with its normals
+        from export.render_subdivided import run_render_subdivided
+
+        return run_render_subdivided(args, _size(args.size), _progress)
     return run(args, _options(args), _size(args.size), lambda message: _progress(args, message))
 
 
@@ -425,6 +429,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_build_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     add_intervals_argument(p)
+    from export.render_subdivided import add_arguments as _add_subdivided_render
+
+    _add_subdivided_render(p)
     p.set_defaults(func=cmd_render)
 
     from export import cli_curve

@@ -23,7 +23,7 @@ from patching.shading import SubdividedMesh, shading_operator
 
 from .atomic import atomic_output
 
-__all__ = ["write_subdivided_obj", "write_subdivided_glb", "run_subdivide", "OUTPUT_SUFFIXES"]
+__all__ = ["OUTPUT_SUFFIXES", "run_subdivide", "split_by_normal", "write_subdivided_glb", "write_subdivided_obj"]
 
 OUTPUT_SUFFIXES = (".obj", ".glb")
 
@@ -53,8 +53,9 @@ def write_subdivided_obj(result: SubdividedMesh, refined: patching.ControlMesh, 
         Path(tmp).write_text(_obj_text(result, refined, comment), encoding="utf-8")
 
 
-def _split_for_glb(result: SubdividedMesh):
-    """(vertices, normals, triangles): one glTF vertex per (vertex, normal) pair."""
+def split_by_normal(result: SubdividedMesh):
+    """(vertices, normals, triangles): one vertex per (vertex, normal) pair (glTF, pictures);
+    quads cut along their 0-2 diagonal."""
     faces, cn = result.faces, result.corner_normal
     if cn is None:
         verts, tri_src, normals = result.points, faces, None
@@ -76,7 +77,7 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
         import trimesh
     except ImportError:
         raise NupatchError("writing .glb needs trimesh: pip install 'nupatch[mesh]'", str(path)) from None
-    verts, normals, tris = _split_for_glb(result)
+    verts, normals, tris = split_by_normal(result)
     mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_normals=normals, process=False)
     data = mesh.export(file_type="glb", include_normals=normals is not None)
     with atomic_output(path) as tmp:

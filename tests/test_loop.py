@@ -87,14 +87,19 @@ SHARPNESS = st.sampled_from([0.0, 0.0, 0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 2.75, 10.0
 @given(base=st.sampled_from(sorted(BASES)), data=st.data(), mode=st.sampled_from([0, 1, 2]),
        method=st.sampled_from(["uniform", "chaikin"]), levels=st.integers(1, 3))
 def test_generated_equal_reference(base, data, mode, method, levels):
+    mesh = random_tagged_mesh(base, data, mode)
+    _compare(mesh, levels if mesh.n_faces < 30 else min(levels, 2), method)
+
+
+def random_tagged_mesh(base, data, mode):
+    """BASES[base] jittered, with random crease and corner sharpness drawn from ``data``."""
     v, f = BASES[base]
     rng = np.random.default_rng(data.draw(st.integers(0, 2**31)))
     v = v + 0.05 * rng.standard_normal(v.shape)
     edges = sorted({(min(a, b), max(a, b)) for tri in f for a, b in zip(tri, tri[1:] + tri[:1])})
     creases = {e: s for e in edges if (s := data.draw(SHARPNESS)) > 0}
     corners = {i: s for i in range(len(v)) if rng.random() < 0.15 and (s := data.draw(SHARPNESS)) > 0}
-    mesh = patching.from_arrays(v, f, creases=creases, corners=corners, interpolate_boundary=mode)
-    _compare(mesh, levels if len(f) < 30 else min(levels, 2), method)
+    return patching.from_arrays(v, f, creases=creases, corners=corners, interpolate_boundary=mode)
 
 
 def test_non_triangle_refused():

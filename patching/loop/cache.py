@@ -7,9 +7,9 @@ from collections import OrderedDict
 
 from ..topology import Topology
 
-__all__ = ["topology_of"]
+__all__ = ["remember", "topology_of"]
 
-_CACHE: "OrderedDict[int, tuple]" = OrderedDict()
+_CACHE: OrderedDict[int, tuple] = OrderedDict()
 _SIZE = 8
 
 
@@ -20,9 +20,17 @@ def topology_of(mesh) -> Topology:
     hit = _CACHE.get(key)
     if hit is not None and hit[0] is mesh:
         _CACHE.move_to_end(key)
-        return hit[1]
-    topo = Topology(mesh)
-    _CACHE[key] = (mesh, topo)
+        if callable(hit[1]):
+            _CACHE[key] = (mesh, hit[1]())
+        return _CACHE[key][1]
+    return remember(mesh, Topology(mesh))
+
+
+def remember(mesh, topo) -> Topology:
+    """Store ``topo`` as the mesh's Topology, or a callable that builds it when first asked
+    for (one built from the parent's tables, ``refine.child_topology``)."""
+    _CACHE[id(mesh)] = (mesh, topo)
+    _CACHE.move_to_end(id(mesh))
     while len(_CACHE) > _SIZE:
         _CACHE.popitem(last=False)
     return topo

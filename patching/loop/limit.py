@@ -4,8 +4,10 @@
 masks (``assignSmoothLimitMask``, ``assignCreaseLimitMask``, ``assignCornerLimitMask``) are
 exact only where the 1-ring matrix is the one they were derived for.  Here:
 
-1. the mesh is refined until no semi-sharp tag is left (``decay_steps``: ceil of the largest
-   finite sharpness; vertex ids are kept from level to level, ``refine``);
+1. the neighbourhood of semi-sharp features is refined until no semi-sharp tag is left in
+   it (``decay_steps``: at most ceil of the largest finite sharpness; only the faces that
+   touch the 1-ring of a vertex whose 1-ring matrix may still change, ``local``; the whole
+   mesh with ``refine="global"``);
 2. at that stationary level every vertex's limit point and per-region normal come from the
    eigenvectors of its own 1-ring matrix (``stationary``): [OSD]'s masks at smooth vertices
    (``(1 - n w) V + w sum E_i``, ``w = 1/(n + 3/(8 beta_n))``) and at crease vertices
@@ -25,6 +27,7 @@ import scipy.sparse as sp
 from ..mesh import ControlMesh
 from ..topology import Topology
 from .cache import topology_of
+from .local import LocalScheme, local_limit
 from .refine import LoopLevel, decay_steps, level_operator, loop_operator
 from .stationary import StationaryMasks, corner_regions, evaluate_normals, level_rules, select_regions, stationary_masks
 
@@ -68,10 +71,17 @@ def _corner_child_loop(topo: Topology, corners: np.ndarray) -> np.ndarray:
     return 12 * f + 3 * local  # child face 4 f + local, the vertex at its corner 0
 
 
-def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform") -> LimitMasks:
-    """Limit masks of a triangle mesh under Loop subdivision (module docstring)."""
+def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform", refine: str = "local") -> LimitMasks:
+    """Limit masks of a triangle mesh under Loop subdivision (module docstring).
+
+    refine: "local" (default: only the neighbourhood of semi-sharp features is refined until
+    they have decayed, ``patching.loop.local``) or "global" (the whole mesh, the reference)."""
     LoopLevel.of(mesh, crease_method)
     k = decay_steps(mesh)
+    if refine == "local":
+        scheme = LocalScheme("loop", lambda m: loop_operator(m, crease_method))
+        P, masks, index, label0, rv0 = local_limit(mesh, scheme, k)
+        return LimitMasks(P, label0, rv0, masks, index)
     if mesh.n_faces * 4 ** (k + 1) > MAX_LIMIT_FACES:
         from ..errors import UnsupportedError
 

@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from ..errors import KnotError, UnsupportedError
 from ..mesh import ControlMesh
 from ..topology import Topology
-from .cache import topology_of
+from .cache import remember, topology_of
 from .rules import (
     CORNER,
     CREASE,
@@ -51,7 +51,7 @@ from .rules import (
     vertex_rule,
 )
 
-__all__ = ["LoopLevel", "loop_operator", "loop_subdivide", "CREASE_METHODS", "MAX_LOOP_FACES"]
+__all__ = ["LoopLevel", "child_topology", "loop_operator", "loop_subdivide", "CREASE_METHODS", "MAX_LOOP_FACES"]
 
 #: How semi-sharp sharpness decays a step ([OSD] ``Sdc::Options::CreasingMethod``).
 CREASE_METHODS = ("uniform", "chaikin")
@@ -274,6 +274,67 @@ def _child_mesh(L: LoopLevel, points: np.ndarray) -> ControlMesh:
     )
 
 
+def child_topology(t: Topology, child: ControlMesh) -> Topology:
+    """The Topology of a Loop step's child mesh, from the parent's tables (the child numbering
+    of the module docstring), equal to ``Topology(child)`` array for array (edges numbered by
+    the key ``lo * n + hi`` as it numbers them, ``edge_halfedge`` the smallest half-edge)
+    without its sorting of every half-edge and its manifold check (a child of a manifold mesh
+    is manifold).  Child half-edge ``12 f + 3 i + j`` is corner j of child face ``4 f + i``."""
+    nv, ne, nf = t.n_vertices, t.n_edges, t.n_faces
+    nvc, H = nv + ne, 12 * nf
+    c = Topology.__new__(Topology)
+    c.mesh = child
+    c.n_faces, c.n_vertices = 4 * nf, nvc
+    c.origin = child.face_vertices.astype(np.int64)
+    h = np.arange(H, dtype=np.int64)
+    c.face = np.repeat(np.arange(4 * nf, dtype=np.int64), 3)
+    c.next = h + np.tile(np.array([1, 1, -2], np.int64), 4 * nf)
+    c.prev = h + np.tile(np.array([2, -1, -1], np.int64), 4 * nf)
+    c.dest = c.origin[c.next]
+    # candidate edges: half k of parent edge e (2 e + k), then inner edge i of face f
+    pe = t.edge_of.reshape(nf, 3)  # e_i of face f
+    pv = t.origin.reshape(nf, 3)  # v_i
+    e_prev = pe[:, [2, 0, 1]]  # e_{i-1}
+    half_keys = (t.edges * nvc + (nv + np.arange(ne))[:, None]).ravel()
+    lo, hi = np.minimum(pe, e_prev), np.maximum(pe, e_prev)
+    inner_keys = ((nv + lo) * nvc + nv + hi).ravel()
+    keys = np.concatenate([half_keys, inner_keys])
+    order = np.argsort(keys, kind="stable")
+    rank = np.empty(keys.size, np.int64)
+    rank[order] = np.arange(keys.size)
+    sk = keys[order]
+    c.edges = np.stack([sk // nvc, sk % nvc], axis=1)
+    c.n_edges = int(keys.size)
+    k_at = (t.edges[pe, 1] == pv).astype(np.int64)  # which half of e_i is at v_i
+    k_prev = (t.edges[e_prev, 1] == pv).astype(np.int64)  # ... of e_{i-1} at v_i
+    eo = np.empty((nf, 4, 3), np.int64)
+    eo[:, :3, 0] = 2 * pe + k_at
+    eo[:, :3, 1] = 2 * ne + 3 * np.arange(nf)[:, None] + np.arange(3)
+    eo[:, :3, 2] = 2 * e_prev + k_prev
+    eo[:, 3, :] = eo[:, [1, 2, 0], 1]  # E_j -> E_{j+1}: inner edge i = j + 1
+    c.edge_of = rank[eo.ravel()]
+    twin = np.full(H, -1, np.int64)
+    f = np.arange(nf)[:, None]
+    i = np.arange(3)[None, :]
+    corner = 12 * f + 3 * i
+    centre = 12 * f + 9 + (i - 1) % 3
+    twin[(corner + 1).ravel()] = centre.ravel()
+    twin[centre.ravel()] = (corner + 1).ravel()
+    pt = t.twin.reshape(nf, 3)  # twin of parent half-edge 3 f + i
+    ok = pt >= 0
+    fp, ip = pt // 3, pt % 3
+    twin[corner[ok]] = (12 * fp + 3 * ((ip + 1) % 3) + 2)[ok]
+    ptp = pt[:, [2, 0, 1]]  # twin of 3 f + (i - 1)
+    okp = ptp >= 0
+    twin[(corner + 2)[okp]] = (12 * (ptp // 3) + 3 * (ptp % 3))[okp]
+    c.twin = twin
+    eh = np.empty(c.n_edges, np.int64)
+    eh[c.edge_of[::-1]] = h[::-1]
+    c.edge_halfedge = eh
+    c.edge_is_boundary = twin[eh] < 0
+    return c
+
+
 def loop_operator(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[sp.csr_matrix, ControlMesh]:
     """One Loop step: (S, refined mesh).
 
@@ -285,7 +346,9 @@ def loop_operator(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[sp
     """
     L = LoopLevel.of(mesh, crease_method)
     s = _operator(L)
-    return s, _child_mesh(L, s @ mesh.vertices)
+    child = _child_mesh(L, s @ mesh.vertices)
+    remember(child, lambda: child_topology(L.topo, child))
+    return s, child
 
 
 def level_operator(mesh: ControlMesh, crease_method: str = "uniform") -> sp.csr_matrix:

@@ -36,15 +36,17 @@ block's values.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .cache import topology_of
 from .rules import CORNER, DART, SMOOTH, loop_limit_edge_weight, vertex_rule
 
-__all__ = ["StationaryMasks", "corner_regions", "stationary_masks", "evaluate_normals", "level_rules"]
+__all__ = ["StationaryMasks", "corner_regions", "stationary_masks", "evaluate_normals", "level_rules", "concat_masks", "regions_of", "plain_vertices"]
 
 _TIE = 1e-8
 
@@ -65,15 +67,55 @@ def level_rules(mesh, topo) -> tuple[np.ndarray, np.ndarray]:
 
 def corner_regions(topo, sharp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Regions of face corners around each vertex, separated by sharp edges ([ZBK] sec. 3.4,
-    Fig. 6b): (label (H,) region id of every corner = half-edge, region_vertex (r,))."""
-    h = np.arange(topo.origin.size)
-    nb = topo.twin[topo.prev]  # the corner across edge prev(h), around origin(h)
-    ok = (nb >= 0) & ~sharp[topo.edge_of[topo.prev]]
-    g = sp.coo_matrix((np.ones(int(ok.sum())), (h[ok], nb[ok])), shape=(h.size, h.size))
-    n, label = connected_components(g, directed=False)
-    rv = np.zeros(n, np.int64)
+    Fig. 6b): (label (H,) region id of every corner = half-edge, region_vertex (r,)).
+
+    Regions are numbered by their smallest corner (as ``connected_components`` of the corner
+    graph numbers them); the graph is only built at vertices with a sharp edge, the corners of
+    every other vertex forming one region."""
+    H = topo.origin.size
+    h = np.arange(H)
+    at_sharp = np.zeros(topo.n_vertices, bool)
+    at_sharp[topo.edges[sharp].ravel()] = True
+    hs = np.flatnonzero(at_sharp[topo.origin])
+    provisional = topo.origin.astype(np.int64).copy()
+    if hs.size:
+        local = np.full(H, -1, np.int64)
+        local[hs] = np.arange(hs.size)
+        nb = topo.twin[topo.prev[hs]]  # the corner across edge prev(h), around origin(h)
+        ok = (nb >= 0) & ~sharp[topo.edge_of[topo.prev[hs]]]
+        g = sp.coo_matrix((np.ones(int(ok.sum())), (local[hs[ok]], local[nb[ok]])), shape=(hs.size, hs.size))
+        _, lab = connected_components(g, directed=False)
+        provisional[hs] = topo.n_vertices + lab
+    smallest = np.empty(topo.n_vertices + hs.size, np.int64)
+    smallest[provisional[::-1]] = h[::-1]
+    used = np.zeros(smallest.size, bool)
+    used[provisional] = True
+    ids = np.flatnonzero(used)
+    rank = np.empty(smallest.size, np.int64)
+    rank[ids[np.argsort(smallest[ids], kind="stable")]] = np.arange(ids.size)
+    label = rank[provisional]
+    rv = np.zeros(ids.size, np.int64)
     rv[label] = topo.origin
-    return label.astype(np.int64), rv
+    return label, rv
+
+
+_REGIONS: OrderedDict[int, tuple] = OrderedDict()
+
+
+def regions_of(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """``corner_regions`` of the mesh's own sharp edges (``level_rules``), cached by object
+    identity like ``cache.topology_of``: (label (H,), region_vertex (r,))."""
+    key = id(mesh)
+    hit = _REGIONS.get(key)
+    if hit is not None and hit[0] is mesh:
+        _REGIONS.move_to_end(key)
+        return hit[1]
+    topo = topology_of(mesh)
+    out = corner_regions(topo, level_rules(mesh, topo)[0])
+    _REGIONS[key] = (mesh, out)
+    while len(_REGIONS) > 8:
+        _REGIONS.popitem(last=False)
+    return out
 
 
 @dataclass
@@ -201,6 +243,24 @@ def _analyse(block: np.ndarray, curve: tuple = (), kind: str = "ring"):
     return out
 
 
+def _block(S: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Dense ``S[rows][:, cols]``, read from the CSR arrays directly."""
+    if np.unique(cols).size != cols.size:
+        return S[rows][:, cols].toarray()
+    starts, ends = S.indptr[rows], S.indptr[rows + 1]
+    cnt = ends - starts
+    idx = np.repeat(starts - np.concatenate([[0], np.cumsum(cnt)[:-1]]), cnt) + np.arange(cnt.sum())
+    c = S.indices[idx]
+    r = np.repeat(np.arange(rows.size), cnt)
+    order = np.argsort(cols)
+    j = np.searchsorted(cols[order], c)
+    j = np.minimum(j, cols.size - 1)
+    hit = cols[order][j] == c
+    out = np.zeros((rows.size, cols.size))
+    np.add.at(out, (r[hit], order[j[hit]]), S.data[idx[hit]])
+    return out
+
+
 class _Rows:
     def __init__(self):
         self.r, self.c, self.v = [], [], []
@@ -219,24 +279,56 @@ class _Rows:
         return m
 
 
-def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndarray | None = None) -> StationaryMasks:
+def plain_vertices(mesh, topo, scheme: str) -> np.ndarray:
+    """(v,) bool: interior smooth vertices with regular faces and no sharp edge (Catmull-Clark:
+    and no tagged vertex on their faces), whose normal is oriented by the ring's order."""
+    nv = topo.n_vertices
+    sharp, rule = level_rules(mesh, topo)
+    regular = 3 if scheme == "loop" else 4
+    bad_face = np.zeros(nv, bool)
+    bad_face[topo.origin[np.diff(mesh.face_offsets)[topo.face] != regular]] = True
+    plain = ~topo.vertex_is_boundary & (rule == SMOOTH) & ~bad_face
+    plain &= np.bincount(topo.edges[sharp].ravel(), minlength=nv) == 0
+    if scheme != "loop":
+        tagged_e = rule[topo.origin] != SMOOTH
+        nb = np.zeros(nv, bool)
+        nb[topo.dest[tagged_e]] = True
+        nb[topo.origin[tagged_e[topo.next[topo.next]]]] = True
+        plain &= ~nb
+    return plain
+
+
+def _flat_ring(k: int) -> np.ndarray:
+    """(2k + 1, 3) a flat regular Catmull-Clark 1-ring in the fans' order: v, the spoke ends
+    counter-clockwise seen from the faces' side, then the far corners between them."""
+    t = 2 * np.pi * np.arange(k) / k
+    e = np.stack([np.cos(t), np.sin(t), 0 * t], 1)
+    f = np.sqrt(2) * np.stack([np.cos(t + np.pi / k), np.sin(t + np.pi / k), 0 * t], 1)
+    return np.vstack([np.zeros((1, 3)), e, f])
+
+
+def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = None) -> StationaryMasks:
     """Limit and normal masks at every vertex of a stationary level (module docstring).
 
     mesh, topo: the level and its Topology; S: the operator of its next step (rows in the
     child numbering of ``scheme``: "loop" (``patching.loop.refine``) or "catmark"
-    (``patching.subdivision``: faces, edges, vertices)).  Faces must be triangles (loop) or
-    quads (catmark).  targets: the vertices whose normals are wanted (default all); limit
-    points are computed for them and their 1-rings (the facets are taken at limit points)."""
+    (``patching.subdivision``: faces, edges, vertices)), or a callable that, given the
+    vertices whose 1-ring blocks are read, returns an operator exact on those rows
+    (``patching.loop.local.local_rows``).  Faces must be triangles (loop) or quads (catmark).
+    targets: the vertices whose normals are wanted (default all); limit points are computed
+    for them and their 1-rings (the facets are taken at limit points)."""
     nv, ne, nf = topo.n_vertices, topo.n_edges, topo.n_faces
     loop = scheme == "loop"
     sharp, rule = level_rules(mesh, topo)
-    label, region_vertex = corner_regions(topo, sharp)
+    if topo is topology_of(mesh):
+        label, region_vertex = regions_of(mesh)
+    else:
+        label, region_vertex = corner_regions(topo, sharp)
     nr = region_vertex.size
     if loop:
         vrow, erow = (lambda v: v), (lambda e: nv + e)
     else:
         vrow, erow = (lambda v: nf + ne + v), (lambda e: nf + e)
-    S = sp.csr_matrix(S)
     pos, ta, tb, fa, fb = _Rows(), _Rows(), _Rows(), _Rows(), _Rows()
     freg: list[np.ndarray] = []
     approx = np.zeros(nr, bool)
@@ -263,6 +355,16 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
     nb_tagged[topo.dest[tagged_e]] = True
     if not loop:
         nb_tagged[topo.origin[tagged_e[topo.next[topo.next]]]] = True
+    # plain vertices (the fans' test below, per vertex): their blocks are shared by valence
+    plain_v = plain_vertices(mesh, topo, scheme)
+    if callable(S):
+        read = np.flatnonzero(used & ~plain_v)
+        if not loop:
+            pv = np.flatnonzero(used & plain_v)
+            _, rep = np.unique(topo.valence[pv], return_index=True)
+            read = np.union1d(read, pv[rep])
+        S = S(read)
+    S = sp.csr_matrix(S)
     n_facets = 0
     for ring, boundary in topo.fans(np.flatnonzero(used)):
         g, k = ring.shape
@@ -288,12 +390,13 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
         plain = (not boundary) & (rule[v] == SMOOTH) & ~bad_face[v] & ~spoke_sharp.any(axis=1)
         if not loop:
             plain &= ~nb_tagged[v]
-        # facet pairs (orientation, approximate normals): per face i of the ring (plain
-        # vertices, one region and never approximate: their first face only)
+        # facet pairs (orientation, approximate normals): per face i of the ring; plain
+        # vertices' tangents are oriented by the ring's order (below), their first facet is
+        # kept only where the pair is not unique (Catmull-Clark, ``approximate``)
         for i in range(k):
             j = (i + 1) % m
             pairs = [(1 + i, 1 + j)] if loop else [(1 + i, 1 + m + i), (1 + m + i, 1 + j)]
-            wv = np.flatnonzero(wanted & (~plain if i else True))
+            wv = np.flatnonzero(wanted & (~plain if (i or loop) else True))
             for p, q in pairs:
                 idx = np.arange(wv.size) + n_facets
                 n_facets += wv.size
@@ -309,21 +412,31 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
             pos.add(v[grp, None], cols[grp], np.concatenate([[1 - n * ew], np.full(k, ew)])[None])
             th = 2 * np.pi * np.arange(k) / k
             gw = grp[wanted[grp]]
+            # oriented by the ring's order, not by a facet: the fans run so that (sum cos E)
+            # x (sum sin E) points to the faces' side (on a flat regular ring, the faces'
+            # normal; checked on every loop_* shape against the facet-oriented normals);
+            # a facet flips it where the level's ring folds over (a crease just decayed)
             ta.add(reg[gw, None], cols[gw, 1:], np.cos(th)[None])
             tb.add(reg[gw, None], cols[gw, 1:], np.sin(th)[None])
         elif grp.size:
             r0 = int(grp[0])
-            block = S[rows[r0]][:, cols[r0]].toarray()
+            block = _block(S, rows[r0], cols[r0])
             lim, pair = _analyse(block)
             pos.add(v[grp, None], cols[grp], lim[None])
             gw = grp[wanted[grp]]
+            if pair is not None:
+                # oriented by the ring's order: on a flat regular ring the pair's normal must
+                # point to the faces' side (+z), as Loop's cos/sin pair does
+                R = _flat_ring(k)
+                if cross((pair[0] @ R)[None], (pair[1] @ R)[None])[0, 2] < 0:
+                    pair = np.stack([pair[0], -pair[1]])
             if pair is None:
                 approx[reg[gw]] = True
             else:
                 ta.add(reg[gw, None], cols[gw], pair[0][None])
                 tb.add(reg[gw, None], cols[gw], pair[1][None])
         for r0 in np.flatnonzero(~plain).tolist():
-            block = S[rows[r0]][:, cols[r0]].toarray()
+            block = _block(S, rows[r0], cols[r0])
             vv = int(v[r0])
             ss = np.flatnonzero(spoke_sharp[r0])
             if not boundary and (rule[vv] in (SMOOTH, DART) or ss.size < 2):
@@ -369,6 +482,7 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
     keep = np.zeros(freg_a.size, bool)
     _, first_idx = np.unique(freg_a, return_index=True)
     keep[first_idx] = True
+    keep &= ~plain_v[region_vertex[freg_a]]  # oriented by the ring's order
     keep |= approx[freg_a]
     sel = np.flatnonzero(keep)
     freg_a = freg_a[sel]
@@ -385,9 +499,12 @@ def stationary_masks(mesh, topo, S: sp.csr_matrix, scheme: str, targets: np.ndar
 
 def _at_limit(F: sp.csr_matrix, P: sp.csr_matrix, rows: np.ndarray) -> sp.csr_matrix:
     """Rows ``rows`` of F replaced by F @ P (limit points), the others kept."""
+    if not rows.any():
+        return F
+    idx = np.flatnonzero(rows)
     keep = sp.diags((~rows).astype(np.float64))
-    swap = sp.diags(rows.astype(np.float64))
-    return (keep @ F + swap @ (F @ P)).tocsr()
+    put = sp.csr_matrix((np.ones(idx.size), (idx, np.arange(idx.size))), shape=(rows.size, idx.size))
+    return (keep @ F + put @ (F[idx] @ P)).tocsr()
 
 
 def select_regions(masks: StationaryMasks, regions: np.ndarray) -> StationaryMasks:
@@ -401,4 +518,22 @@ def select_regions(masks: StationaryMasks, regions: np.ndarray) -> StationaryMas
         masks.position, np.full(0, -1, np.int64), masks.region_vertex[regions],
         masks.tangent_a[regions], masks.tangent_b[regions], masks.facet_a[keep], masks.facet_b[keep],
         new[masks.facet_region[keep]], masks.approximate[regions],
+    )
+
+
+def concat_masks(parts: list, position: sp.csr_matrix) -> StationaryMasks:
+    """The regions of several StationaryMasks over the same points, one after the other
+    (``position`` given; ``region_of_corner`` dropped)."""
+    n = position.shape[1]
+    if not parts:
+        empty = sp.csr_matrix((0, n))
+        return StationaryMasks(position, np.zeros(0, np.int64), np.zeros(0, np.int64), empty, empty, empty, empty,
+                               np.zeros(0, np.int64), np.zeros(0, bool))
+    offsets = np.cumsum([0] + [p.region_vertex.size for p in parts[:-1]])
+    return StationaryMasks(
+        position, np.full(0, -1, np.int64), np.concatenate([p.region_vertex for p in parts]),
+        sp.vstack([p.tangent_a for p in parts]).tocsr(), sp.vstack([p.tangent_b for p in parts]).tocsr(),
+        sp.vstack([p.facet_a for p in parts]).tocsr(), sp.vstack([p.facet_b for p in parts]).tocsr(),
+        np.concatenate([p.facet_region + o for p, o in zip(parts, offsets)]),
+        np.concatenate([p.approximate for p in parts]),
     )

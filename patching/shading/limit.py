@@ -2,7 +2,8 @@
 Catmull-Clark (``patching.subdivision``'s operator), through the same stationary-level
 eigen-analysis (``patching.loop.stationary``).
 
-Catmull-Clark: the mesh is refined until no semi-sharp tag is left (ceil of the largest finite
+Catmull-Clark: the neighbourhood of semi-sharp features and of faces that are not quads is
+refined locally (``patching.loop.local``); with ``refine="global"`` the whole mesh is refined until no semi-sharp tag is left (ceil of the largest finite
 sharpness; at least one step where a face is not a quad), keeping track of each input vertex
 (child id ``n_faces + n_edges + v``) and of each face corner (corner h becomes corner 0 of
 child face h, half-edge ``4 h``); then the 1-ring blocks of that level's operator.  Uniform
@@ -20,6 +21,7 @@ from ..errors import KnotError, UnsupportedError
 from ..mesh import INFINITELY_SHARP, ControlMesh
 from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks, loop_limit_masks
+from ..loop.local import LocalScheme, local_limit
 from ..loop.stationary import corner_regions, level_rules, select_regions, stationary_masks
 
 __all__ = ["limit_masks", "SCHEMES"]
@@ -45,12 +47,18 @@ def check_uniform_catmark(mesh: ControlMesh) -> None:
         )
 
 
-def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_method: str = "uniform") -> LimitMasks:
-    """Limit masks of a mesh under Catmull-Clark (rules as ``patching.subdivision``)."""
+def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_method: str = "uniform",
+                        refine: str = "local") -> LimitMasks:
+    """Limit masks of a mesh under Catmull-Clark (rules as ``patching.subdivision``); refine
+    "local" (default) or "global" as ``patching.loop.limit.loop_limit_masks``."""
     from ..subdivision import subdivision_operator
 
     check_uniform_catmark(mesh)
     k = _catmark_decay(mesh)
+    if refine == "local":
+        scheme = LocalScheme("catmark", lambda m: subdivision_operator(m, rules=rules, crease_method=crease_method))
+        P, masks, index, label0, rv0 = local_limit(mesh, scheme, k)
+        return LimitMasks(P, label0, rv0, masks, index)
     if int(mesh.face_sizes.sum()) * 4 ** (k + 1) > MAX_LIMIT_FACES:
         raise UnsupportedError(f"the limit needs {k} refinement steps of {mesh.n_faces} faces, too many", mesh.name)
     topo0 = topology_of(mesh)
@@ -78,10 +86,12 @@ def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_met
     return LimitMasks(sub.position[ids].tocsr(), label0, rv0, sub, index)
 
 
-def limit_masks(mesh: ControlMesh, scheme: str, rules: str = "opensubdiv", crease_method: str = "uniform") -> LimitMasks:
-    """Limit masks (points, per-region normals) of ``mesh`` under ``scheme``."""
+def limit_masks(mesh: ControlMesh, scheme: str, rules: str = "opensubdiv", crease_method: str = "uniform",
+                refine: str = "local") -> LimitMasks:
+    """Limit masks (points, per-region normals) of ``mesh`` under ``scheme``; refine "local"
+    (default) or "global" (``patching.loop.limit.loop_limit_masks``)."""
     if scheme == "loop":
-        return loop_limit_masks(mesh, crease_method)
+        return loop_limit_masks(mesh, crease_method, refine)
     if scheme == "catmark":
-        return catmark_limit_masks(mesh, rules, crease_method)
+        return catmark_limit_masks(mesh, rules, crease_method, refine)
     raise UnsupportedError(f"scheme must be one of {', '.join(SCHEMES)}, got '{scheme}'")

@@ -45,7 +45,7 @@ from ..mesh import ControlMesh
 from ..topology import Topology
 from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks
-from ..loop.stationary import corner_regions, cross, level_rules
+from ..loop.stationary import cross, level_rules, regions_of
 from .limit import SCHEMES, limit_masks
 
 __all__ = ["ShadingOperator", "SubdividedMesh", "shading_operator", "subdivide_with_normals", "NORMAL_MODES", "VARIANTS"]
@@ -86,8 +86,8 @@ def _step(mesh: ControlMesh, scheme: str, rules: str, crease_method: str):
 
 def _regions(mesh: ControlMesh):
     topo = topology_of(mesh)
-    sharp, rule = level_rules(mesh, topo)
-    label, rv = corner_regions(topo, sharp)
+    _, rule = level_rules(mesh, topo)
+    label, rv = regions_of(mesh)
     return topo, label, rv, rule
 
 
@@ -170,11 +170,8 @@ class ShadingOperator:
     mesh: ControlMesh  # the refined mesh (positions of the input it was built from)
     steps: list  # the L step operators: level-L points = S_L @ ... @ S_1 @ P
     first: sp.csr_matrix  # level-1 points from control points
-    level1_faces: np.ndarray  # (H1,) face of each corner at level 1
-    level1_corner_faces: tuple  # (face_vertices, face_offsets) of level 1
-    level1_label: np.ndarray
-    level1_regions: int
-    normal_op: sp.csr_matrix  # level-L regions from level-1 regions
+    level1_edges: tuple  # (a, b) (H1,) level-1 vertices: corner c's cross product a[c] x b[c]
+    normal_ops: list  # level-1 corner products -> level-1 regions -> ... -> level-L regions
     blend: np.ndarray  # (nv_L,) b
     limit: LimitMasks | None  # over the level-L points
     region_of_corner: np.ndarray  # (H_L,)
@@ -215,17 +212,10 @@ class ShadingOperator:
             blend = None
         else:
             p1 = levels[0]
-            fv, fo = self.level1_corner_faces
-            # area-weighted face normals (Newell: sum of cross products of consecutive corners)
-            nxt = np.arange(fv.size) + 1
-            ends = fo[1:][self.level1_faces]
-            nxt = np.where(nxt == ends, fo[:-1][self.level1_faces], nxt)
-            cr = cross(p1[fv], p1[fv[nxt]])
-            fn = np.zeros((fo.size - 1, 3))
-            np.add.at(fn, self.level1_faces, cr)
-            n1 = np.zeros((self.level1_regions, 3))
-            np.add.at(n1, self.level1_label, fn[self.level1_faces])
-            ns = self.normal_op @ n1
+            a, b = self.level1_edges
+            ns = cross(p1[a], p1[b])
+            for R in self.normal_ops:
+                ns = R @ ns
             ns /= np.maximum(np.linalg.norm(ns, axis=1), 1e-300)[:, None]
             bp = self.blend[self.region_vertex] ** self.power
             normals = (1 - bp)[:, None] * nl + bp[:, None] * ns
@@ -289,29 +279,36 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
     if cur.face_sizes.size and not np.all(cur.face_sizes == k) and levels > 0:
         raise AssertionError("refined faces of unexpected size")
     if normals == "none":
-        return ShadingOperator(scheme, levels, normals, variant, power, cur, steps, first, np.zeros(0, np.int64),
-                               (np.zeros(0, np.int64), np.zeros(1, np.int64)), np.zeros(0, np.int64), 0,
-                               sp.csr_matrix((0, 0)), np.zeros(cur.n_vertices), None, np.zeros(0, np.int64), np.zeros(0, np.int64), keep)
+        return ShadingOperator(scheme, levels, normals, variant, power, cur, steps, first,
+                               (np.zeros(0, np.int64), np.zeros(0, np.int64)), [], np.zeros(cur.n_vertices), None,
+                               np.zeros(0, np.int64), np.zeros(0, np.int64), keep)
     L = limit_masks(cur, scheme, rules, crease_method)  # over the level-L points
     # level-1 regions (normals start there), blend weights seeded at blend_level
     m1 = ops[0][2]
     t1, label1, rv1, _ = _regions(m1)
-    T = sp.identity(rv1.size, format="csr")
+    # level-1 region normals: the sum over the region's corners of their faces' Newell normals
+    # (each face's sum of corner cross products), one sparse matrix over the corner products
+    fv = m1.face_vertices
+    nxt = t1.next
+    H1 = fv.size
+    per_face = sp.csr_matrix((np.ones(H1), (t1.face, np.arange(H1))), shape=(t1.n_faces, H1))
+    to_region = sp.csr_matrix((np.ones(H1), (label1, t1.face)), shape=(rv1.size, t1.n_faces))
+    ops_n = [(to_region @ per_face).tocsr()]
     plabel, prv, ptopo = label1, rv1, t1
     b = None
     for level, (cur_mesh, S, child, pface) in enumerate(ops[1:], start=1):
         if level == blend_level:
             b = _seed_blend(cur_mesh, scheme, variant)
         ctopo, clabel, crv, _ = _regions(child)
-        T = (region_operator(S, ptopo, plabel, prv, clabel, crv, pface) @ T).tocsr()
+        ops_n.append(region_operator(S, ptopo, plabel, prv, clabel, crv, pface))
         if b is not None:
             b = S @ b
         plabel, prv, ptopo = clabel, crv, ctopo
     if b is None:
         b = _seed_blend(cur, scheme, variant)
     return ShadingOperator(
-        scheme, levels, normals, variant, power, cur, steps, first, t1.face, (m1.face_vertices, m1.face_offsets),
-        label1, rv1.size, T, b, L, plabel if levels > 1 else label1, prv if levels > 1 else rv1, keep,
+        scheme, levels, normals, variant, power, cur, steps, first, (fv, fv[nxt]),
+        ops_n, b, L, plabel if levels > 1 else label1, prv if levels > 1 else rv1, keep,
     )
 
 
