@@ -411,7 +411,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
     p.add_argument("-n", dest="steps", type=int, default=1, metavar="K", help="number of steps (default 1)")
     p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
-    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only")
+    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only; nurss: Sederberg et al.'s NURSS at extraordinary points (a baseline)")
     p.add_argument(
         "--eigen-angles", "--angles", dest="eigen_angles", choices=ANGLE_CHOICES, default="standard",
         help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",
