@@ -125,7 +125,7 @@ def _jobs(args: argparse.Namespace) -> list:
 
 def _options(args: argparse.Namespace) -> BuildOptions:
     """The BuildOptions of ``build`` / ``render``'s flags (validated once, there)."""
-    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
+    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve, method=args.method)
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -358,6 +358,11 @@ def _add_build_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--g1-solve", choices=CHOICES["g1_solve"], default=defaults.g1_solve,
         help="joint: one fairing solve per cluster of adjacent extraordinary points (default); seed: [FSLYJ]'s per-point steps",
+    )
+    p.add_argument(
+        "--method", choices=CHOICES["method"], default=defaults.method,
+        help="fslyj: [FSLYJ]'s construction at extraordinary points (default); t-spline: the T-spline "
+        "baseline of [SSEL13] (uniform angles, no auxiliary anchors; fixes --angles, --anchors, --g1-solve)",
     )
 
 
