@@ -2,6 +2,7 @@
 [SSEL13] (its [32]), ``build_operator(method="t-spline")`` (``patching.extraordinary.t_spline``).
 
     .venv/bin/python benchmarks/t_spline.py [--configs 40] [--samples 33] [--seed 2024] [--figures-only]
+    .venv/bin/python benchmarks/t_spline.py --ablation --configs 20
 
 Table: the random configurations of ``benchmarks/blending.py`` (the same draws: planar
 ``ep_disc`` of valence n = 5, 6, all 3n strips uniform in [1, R], ``default_rng([seed, n, R])``),
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -176,13 +178,64 @@ def figures(bad: dict, seed: int) -> None:
         _compare(rest, "t_spline_fig13", "[FSLYJ] Fig. 13: more random intervals, ratio <= 5")
 
 
+@contextmanager
+def _variant(angles: str, local_g1: bool):
+    """[SSEL13]'s build with one of its three parts swapped back (module docstring of
+    ``patching.extraordinary.t_spline``): the angles, and/or the per-EP fairing replaced by
+    [FSLYJ]'s local steps (clusters of one EP dropped)."""
+    from patching.extraordinary.cluster_fairing import ep_clusters
+    from patching.operator import assembly
+
+    saved = assembly.T_SPLINE_ANGLES, assembly.t_spline_clusters
+    assembly.T_SPLINE_ANGLES = angles
+    if local_g1:
+        assembly.t_spline_clusters = ep_clusters
+    try:
+        yield
+    finally:
+        assembly.T_SPLINE_ANGLES, assembly.t_spline_clusters = saved
+
+
+def ablation(configs: int, samples: int, seed: int) -> None:
+    """Which of [SSEL13]'s three parts makes the extra maxima: the same draws, R = 5 and 20."""
+    variants = {
+        "t-spline": ("uniform", False),
+        "t-spline, local G1": ("uniform", True),
+        "first-ring anchors only": ("optimized", True),
+    }
+    print(f"\nablation: {configs} configurations per row; [SSEL13] with its parts swapped back to [FSLYJ]'s")
+    head = f"{'n':>2} {'R':>3} {'variant':>24} {'EP':>7} {'all 2n+1':>9} {'configs':>8} {'<1%':>7} {'2nd max':>8} {'jump deg':>9}"
+    print(head)
+    print("-" * len(head))
+    for ratio in (5.0, 20.0):
+        for n in (5, 6):
+            ds = draws(n, ratio, configs, seed)
+            for name, (angles, local) in variants.items():
+                ep, every, clean, visible, second, jump = [], [], [], [], [], []
+                with _variant(angles, local):
+                    for c, d in enumerate(ds):
+                        _, _, q = quality(d, MODES["t-spline"], samples, c)
+                        ep.append(q.local_maxima[0] == 1)
+                        every.extend(k == 1 for k in q.local_maxima.values())
+                        clean.append(all(k == 1 for k in q.local_maxima.values()))
+                        visible.extend(r < VISIBLE for r in q.prominence.values())
+                        second.append(max(q.second_maximum.values()))
+                        jump.append(q.max_normal_jump_deg)
+                print(f"{n:>2} {ratio:>3.0f} {name:>24} {np.mean(ep):>7.1%} {np.mean(every):>9.1%} {np.mean(clean):>8.1%} "
+                      f"{np.mean(visible):>7.1%} {max(second):>8.3f} {max(jump):>9.1e}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--configs", type=int, default=40)
     ap.add_argument("--samples", type=int, default=33)
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--figures-only", action="store_true")
+    ap.add_argument("--ablation", action="store_true", help="only the table of [SSEL13]'s parts swapped back")
     args = ap.parse_args()
+    if args.ablation:
+        ablation(args.configs, args.samples, args.seed)
+        return
     bad = {} if args.figures_only else table(args.configs, args.samples, args.seed)
     figures(bad, args.seed)
 
