@@ -125,7 +125,7 @@ def _jobs(args: argparse.Namespace) -> list:
 
 def _options(args: argparse.Namespace) -> BuildOptions:
     """The BuildOptions of ``build`` / ``render``'s flags (validated once, there)."""
-    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve)
+    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve, method=args.method)
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -333,6 +333,11 @@ def _add_build_options(p: argparse.ArgumentParser) -> None:
         "--g1-solve", choices=CHOICES["g1_solve"], default=defaults.g1_solve,
         help="joint: one fairing solve per cluster of adjacent extraordinary points (default); seed: [FSLYJ]'s per-point steps",
     )
+    p.add_argument(
+        "--method", choices=CHOICES["method"], default=defaults.method,
+        help="fslyj: [FSLYJ]'s construction at extraordinary points (default); t-spline: the T-spline "
+        "baseline of [SSEL13] (uniform angles, no auxiliary anchors; fixes --angles, --anchors, --g1-solve)",
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -385,7 +390,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
     p.add_argument("-n", dest="steps", type=int, default=1, metavar="K", help="number of steps (default 1)")
     p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
-    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only")
+    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only; nurss: Sederberg et al.'s NURSS at extraordinary points (a baseline)")
     p.add_argument(
         "--eigen-angles", "--angles", dest="eigen_angles", choices=ANGLE_CHOICES, default="standard",
         help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",

@@ -13,7 +13,13 @@ from typing import Any, Literal, Mapping
 
 from patching.errors import OptionError
 
-__all__ = ["BuildOptions", "CHOICES", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS"]
+__all__ = ["BuildOptions", "CHOICES", "METHODS", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS"]
+
+#: The construction at EPs: [FSLYJ]'s (default), or the T-spline baseline of [SSEL13] (its
+#: [32]: the extraction's own face points, no auxiliary anchors; uniform angles; the G1
+#: perturbation by fairing, ``extraordinary.t_spline``).  "t-spline" fixes angles, anchors and
+#: the G1 solve, so those must stay at their defaults (angles may also say "uniform").
+METHODS = ("fslyj", "t-spline")
 
 #: Angle configuration at EPs: [FSLYJ] sec. 3.3's optimised angles (default), its heuristic
 #: default angles, or 2 pi / n (the T-spline baseline of [SSEL13]).
@@ -32,6 +38,7 @@ G1_SOLVES = ("joint", "seed")
 REFINEMENTS = ("auto", "global")
 
 CHOICES: Mapping[str, tuple[str, ...]] = {
+    "method": METHODS,
     "angles": ANGLES,
     "anchors": ANCHORS,
     "interior": INTERIORS,
@@ -49,12 +56,22 @@ class BuildOptions:
     interior: Literal["extraction", "cubic-isocurves"] = "extraction"
     g1_solve: Literal["joint", "seed"] = "joint"
     refinement: Literal["auto", "global"] = "auto"
+    method: Literal["fslyj", "t-spline"] = "fslyj"
 
     def __post_init__(self) -> None:
         for name, choices in CHOICES.items():
             value = getattr(self, name)
             if not isinstance(value, str) or value not in choices:
                 raise OptionError(f"{name} must be one of {', '.join(choices)}, not {value!r}", name)
+        if self.method == "t-spline":
+            fixed = {"angles": ("optimized", "uniform"), "anchors": ("eigen-polyhedron",), "g1_solve": ("joint",)}
+            for name, allowed in fixed.items():
+                if getattr(self, name) not in allowed:
+                    raise OptionError(
+                        f"method t-spline fixes {name} ([SSEL13]'s construction); leave {name} at its "
+                        f"default, not {getattr(self, name)!r}",
+                        name,
+                    )
 
     @classmethod
     def of(cls, options: "BuildOptions | None" = None, **overrides: Any) -> "BuildOptions":

@@ -54,7 +54,10 @@ def vertex_point_weights(d: np.ndarray) -> np.ndarray:
     return w / w.sum()
 
 
-RULES = ("eigen-polyhedron", "extraction")
+#: "first-ring": A_i = F_i, the extraction of [SSEL13] itself (no limit point of [LFS16]), so
+#: that the patches are [SSEL13]'s C0 extraction with the EP as control point
+#: (``t_spline``, ``build_operator(method="t-spline")``).
+RULES = ("eigen-polyhedron", "extraction", "first-ring")
 
 
 @lru_cache(maxsize=4096)
@@ -80,6 +83,10 @@ def _anchor_weights(d: tuple, a: tuple, angles: str, rule: str) -> np.ndarray:
         ring[E(i)] = (dm * ring[F(i)] + dp * ring[F(i - 1)]) / (dm + dp)
     c = vertex_point_weights(d_arr)
     ring[0] = sum(c[i] * ring[F(i)] for i in range(n))
+    if rule == "first-ring":
+        out = ring[n + 1 :].copy()
+        out.setflags(write=False)
+        return out
     limit = limit_point_weights(d_arr, angles=angles) @ ring  # C
     if rule == "extraction":
         out = ring[n + 1 :] + (limit - ring[0])[None, :]  # A_i = F_i + C - V, V = sum c_j F_j

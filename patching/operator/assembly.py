@@ -27,6 +27,9 @@ from patching.extraordinary.auxiliary_points import anchor_matrix
 from patching.extraordinary.cluster_fairing import ClusterFairing, ep_clusters
 from patching.extraordinary.extraction import cubic_extraction, regular_face_points
 from patching.extraordinary.g1_patches import G1Assembly, RowMixer, ep_groups
+from patching.extraordinary.t_spline import ANCHOR_RULE as T_SPLINE_ANCHORS
+from patching.extraordinary.t_spline import ANGLES as T_SPLINE_ANGLES
+from patching.extraordinary.t_spline import t_spline_clusters
 from patching.mesh.control_mesh import ControlMesh
 from patching.options import BuildOptions
 from patching.surface import OperatorGroup, SurfaceOperator
@@ -46,6 +49,9 @@ def assemble(
     sectors between infinitely sharp edges as in [FSLYJ] sec. 4.2.  ``force_extraordinary``:
     interior vertices to treat as EPs whatever their valence (tests, comparisons)."""
     angles, anchors, interior, g1_solve = options.angles, options.anchors, options.interior, options.g1_solve
+    t_spline = options.method == "t-spline"  # [SSEL13]'s construction (extraordinary.t_spline)
+    if t_spline:
+        angles = T_SPLINE_ANGLES
     feats = features(topo)
     spans = topo.face_spans
     # Hole faces (OpenSubdiv's `t hole`) and, under interpolateboundary 0, faces at the open
@@ -92,6 +98,8 @@ def assemble(
         # elevated rows and the extraction: cheaper than a pass over the longer elevated rows
         # per step (serial, half-EP mesh, where red alone sets most rows: 0.13 s against 0.16 s).
         clusters = ep_clusters(groups_ep, topo) if g1_solve == "joint" else []
+        if t_spline:
+            clusters = t_spline_clusters(groups_ep, topo)
         if clusters:
             fairing = ClusterFairing(g1, clusters, has_patch)
             rest = g1.without(fairing.members())
@@ -107,7 +115,7 @@ def assemble(
             steps_composed = step if steps_composed is None else product(step, steps_composed)
         mixing = product(steps_composed, mixing)
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
-        rule = "eigen-polyhedron" if anchors == "faired" else anchors
+        rule = T_SPLINE_ANCHORS if t_spline else "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
         anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, rule=rule)
         anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)

@@ -23,7 +23,7 @@ face ``h`` = ``(V(origin h), E(edge h), F(face h), E(edge prev h))``, same orien
           |   |
          v_i--E(h_{i-1})--v_{i-1}
 
-Two rule sets (``rules``):
+Three rule sets (``rules``):
 
 * ``"opensubdiv"``: OpenSubdiv's Catmark rules (``sdc/catmarkScheme.h``, ``sdc/crease.cpp``,
   ``sdc/scheme.h``, ``far/topologyRefinerFactory.cpp``): boundary edges infinitely sharp in every
@@ -47,6 +47,10 @@ Two rule sets (``rules``):
   curve rules, ``subdivision_rules``), non-uniform cubic B-spline crease curves, and the
   eigen-polyhedron rules of [LFS16] (``eigen_polyhedron``, angles of [ZTL] with
   ``angles="modified"``) on faces and edges around an untagged extraordinary point.
+* ``"nurss"``: the baseline of [TLC] and [ZTL], Sederberg et al.'s NURSS ([SZSS98]): as
+  ``"seed"`` everywhere but at untagged non-uniform extraordinary points, whose 1-ring rows
+  are NURSS's heuristic generalisation of knot insertion (``rules.nurss``) instead of the
+  eigen-polyhedron's.  Uniform intervals: Catmull-Clark, as ``"seed"``.
 
 Choices where the seeds are silent, written once:
 
@@ -151,7 +155,7 @@ __all__ = [
     "CREASE_METHODS",
 ]
 
-RULE_SETS = ("seed", "opensubdiv")
+RULE_SETS = ("seed", "opensubdiv", "nurss")
 ANGLE_CHOICES = ("standard", "modified")
 #: How semi-sharp sharpness decays a step (OpenSubdiv's Sdc::Options::CreasingMethod).
 CREASE_METHODS = ("uniform", "chaikin")
@@ -364,17 +368,19 @@ class _Claims:
             out.add(rows[:, None], cols, weights / self.count[rows][:, None])
 
 
-def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str, claims: _Claims) -> None:
+def _ep_rows(ctx: _Context, eps: np.ndarray, angles: str, claims: _Claims, rules: str = "seed") -> None:
     """Rows of the [LFS16] local matrix around every untagged EP, the EPs of one valence in one
-    vectorised solve (``eigen_polyhedron.local_subdivision_matrices``)."""
+    vectorised solve (``eigen_polyhedron.local_subdivision_matrices``); under ``rules="nurss"``
+    NURSS's local matrix instead (``rules.nurss``, [SZSS98])."""
     from patching.rules import eigen_polyhedron as eig
+    from patching.rules.nurss import nurss_local_matrices
 
     for n in np.unique(ctx.valence[eps]).tolist():
         v = eps[ctx.valence[eps] == n]
         ring = np.stack([ctx.topo.one_ring(x) for x in v.tolist()])  # (g, n) spokes
         d = ctx.d_h[ring]
         try:
-            m = eig.local_subdivision_matrices(d, angles=angles)
+            m = nurss_local_matrices(d) if rules == "nurss" else eig.local_subdivision_matrices(d, angles=angles)
         except ValueError as exc:
             k = exc.index[0] if isinstance(exc, eig.BilinearError) else 0
             raise UnsupportedError(
@@ -521,7 +527,7 @@ def _refuse_nonuniform(ctx: _Context) -> None:
 
 
 def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
-    seed = rules == "seed"
+    seed = rules in ("seed", "nurss")  # NURSS differs from [TLC]'s rules at smooth EPs only
     if rules == "opensubdiv" and not ctx.uniform:
         _refuse_nonuniform(ctx)
     nonuniform = not ctx.uniform
@@ -540,7 +546,7 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
             & (par.rule == SMOOTH)
             & ctx.topo.vertex_is_used
         )
-        _ep_rows(ctx, eps, angles, claims)
+        _ep_rows(ctx, eps, angles, claims, rules)
         if seed:
             _tagged_rows(ctx, claims)
     claimed = claims.count > 0
@@ -715,7 +721,7 @@ def subdivision_operator(
     the module docstring).  The refined mesh carries the tags: intervals halved (one value per
     strip), crease and corner sharpness decremented (infinite stays), holes' children holes,
     interpolateboundary; its positions are ``S @ mesh.vertices``.
-    rules: "seed" (default) or "opensubdiv"; angles: "standard" or "modified" ([ZTL], for
+    rules: "seed" (default), "opensubdiv" or "nurss"; angles: "standard" or "modified" ([ZTL], for
     the eigen-polyhedron at non-uniform extraordinary points); crease_method: "uniform"
     (default: sharpness drops by 1) or "chaikin" (OpenSubdiv's ``CREASE_CHAIKIN``, with
     ``rules="opensubdiv"`` only: the two halves of a semi-sharp edge get ``3/4 s + 1/4 (mean
