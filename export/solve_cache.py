@@ -60,7 +60,7 @@ class DiskStore:
         path = self.path(key)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_output(path) as tmp:
+            with atomic_output(path, durable=False) as tmp:  # readers check the digests
                 tmp.write_bytes(data)
         except Exception:  # noqa: BLE001 - a cache that cannot write is no cache, not an error
             pass

@@ -643,7 +643,7 @@ def _optimise_cached(problem: tuple, dbar, st, *args):
             and all(abs(theta[list(sector)].sum() - total) <= 1e-12 for sector, total in zip(st.sectors, st.sums))
         )
 
-    theta, info = lookup("angle_configuration", __file__, problem, 2, solve, valid)
+    theta, info = lookup("angle_configuration", problem, 2, solve, valid)
     return theta, int(info[0]), bool(info[1])
 
 

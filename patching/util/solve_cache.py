@@ -9,9 +9,8 @@ sharp spokes, options), so a solved configuration can be kept between processes.
 ``patching`` writes no files: it asks the installed store (``set_store``; none by default, so
 ``patching.build`` in a script is unchanged and pure), and ``export.solve_cache`` provides the
 on-disk store that the command line installs.  An entry is keyed by a SHA-256 of the problem's
-name, the SHA-256 of the source file of the module that solves it (so any change to that code,
-or to a version of it on another branch, misses the old entries instead of trusting them), and
-the problem's arguments; it carries the same digest and a digest of its payload.  ``lookup``
+name, the SHA-256 of the package's source files (so any change to the code, or another branch's
+version of it, misses the old entries instead of trusting them), and the problem's arguments; it carries the same digest and a digest of its payload.  ``lookup``
 trusts an entry only when both digests match, the arrays have the expected count, shapes and
 finite values, and the caller's ``validate`` accepts them; anything else is ignored (and the
 entry rewritten by the fresh solve).  Values are float64 bit for bit, so a cached solve gives
@@ -70,21 +69,26 @@ def current_store() -> SolveStore | None:
     return _store
 
 
-_digests: dict[str, str] = {}
+_digest: list[str] = []
 
 
-def source_digest(module_file: str) -> str:
-    """SHA-256 of a module's source file (read once a process)."""
-    digest = _digests.get(module_file)
-    if digest is None:
-        digest = _digests[module_file] = hashlib.sha256(Path(module_file).read_bytes()).hexdigest()
-    return digest
+def source_digest() -> str:
+    """SHA-256 of every ``.py`` file of the ``patching`` package (paths and contents), read
+    once a process: a local solve may call code anywhere in the package, so any change to it
+    (an edit, another branch, an upgrade) misses every old entry instead of trusting it."""
+    if not _digest:
+        root = Path(__file__).resolve().parent.parent
+        h = hashlib.sha256()
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+        _digest.append(h.hexdigest())
+    return _digest[0]
 
 
-def entry_key(problem: str, module_file: str, args: tuple) -> str:
-    """The key of one problem: its name, its solver's source digest and ``repr`` of its
+def entry_key(problem: str, args: tuple) -> str:
+    """The key of one problem: its name, the package's source digest and ``repr`` of its
     arguments (floats' repr round-trips exactly)."""
-    text = f"{problem}\0{source_digest(module_file)}\0{args!r}"
+    text = f"{problem}\0{source_digest()}\0{args!r}"
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -132,7 +136,6 @@ def decode(key: str, data: bytes, count: int) -> list[np.ndarray] | None:
 
 def lookup(
     problem: str,
-    module_file: str,
     args: tuple,
     count: int,
     solve: Callable[[], Sequence[np.ndarray]],
@@ -144,7 +147,7 @@ def lookup(
     store = _store
     if store is None:
         return [np.asarray(a, dtype=float) for a in solve()]
-    key = entry_key(problem, module_file, args)
+    key = entry_key(problem, args)
     data = store.get(key)
     if data is not None:
         arrays = decode(key, data, count)
