@@ -44,13 +44,15 @@ class DiskStore:
 
     def __init__(self, root: str | os.PathLike | None = None) -> None:
         self.root = Path(root) if root is not None else cache_directory()
+        self._solves = os.path.join(self.root, "solves")
 
     def path(self, key: str) -> Path:
-        return self.root / "solves" / key[:2] / key
+        return Path(self._solves, key[:2], key)
 
     def get(self, key: str) -> bytes | None:
         try:
-            return self.path(key).read_bytes()
+            with open(os.path.join(self._solves, key[:2], key), "rb") as f:
+                return f.read()
         except OSError:
             return None
 

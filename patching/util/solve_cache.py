@@ -20,6 +20,7 @@ the same surface as a fresh one, to the last bit.
 from __future__ import annotations
 
 import hashlib
+import math
 import struct
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -108,30 +109,31 @@ def decode(key: str, data: bytes, count: int) -> list[np.ndarray] | None:
     """The arrays of an entry for ``key``, or None if it is not exactly one well-formed entry
     for that key with ``count`` finite arrays."""
     head = _MAGIC + key.encode()
-    if not data.startswith(head) or len(data) < len(head) + 32:
+    start = len(head) + 32
+    if len(data) < start + 4 or not data.startswith(head):
         return None
-    digest, payload = data[len(head):len(head) + 32], data[len(head) + 32:]
-    if hashlib.sha256(payload).digest() != digest:
+    payload = memoryview(data)[start:]
+    if hashlib.sha256(payload).digest() != data[len(head):start]:
         return None
     try:
-        (n,) = struct.unpack_from("<I", payload, 0)
-        if n != count:
+        if struct.unpack_from("<I", payload, 0)[0] != count:
             return None
         at, out = 4, []
-        for _ in range(n):
+        for _ in range(count):
             (ndim,) = struct.unpack_from("<I", payload, at)
             shape = struct.unpack_from(f"<{ndim}Q", payload, at + 4)
             at += 4 + 8 * ndim
-            size = int(np.prod(shape, dtype=np.int64)) * 8
-            if at + size > len(payload):
+            size = math.prod(shape)
+            if at + 8 * size > len(payload):
                 return None
-            out.append(np.frombuffer(payload, dtype="<f8", count=size // 8, offset=at).reshape(shape).astype(float))
-            at += size
-    except struct.error:
+            a = np.frombuffer(payload, dtype="<f8", count=size, offset=at).reshape(shape).copy()
+            if not np.isfinite(a).all():
+                return None
+            out.append(a)
+            at += 8 * size
+    except (struct.error, ValueError):
         return None
-    if at != len(payload) or not all(np.all(np.isfinite(a)) for a in out):
-        return None
-    return out
+    return out if at == len(payload) else None
 
 
 def lookup(
