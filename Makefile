@@ -4,6 +4,8 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+# test workers (pytest-xdist): one per core; `make test JOBS=0` runs in one process
+JOBS ?= auto
 STAMP := $(VENV)/.nupatch-installed
 DEMO_MODEL ?= models/l_bracket.obj
 DEMO_OUT ?= build/l_bracket.step
@@ -26,7 +28,7 @@ demo: $(STAMP)
 	$(BIN)/nupatch check $(DEMO_OUT)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
 
 clean:
 	rm -rf build .pytest_cache

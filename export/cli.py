@@ -177,11 +177,27 @@ def _build_many(args: argparse.Namespace, jobs: list) -> int:
     return 2 if failed else 0
 
 
+def _has_control_vectors(source) -> bool:
+    """Whether an OBJ file carries ``t controlvector`` tags (read by ``subdivide``)."""
+    path = Path(str(source))
+    if str(source) == "-" or path.suffix.lower() != ".obj" or not path.is_file():
+        return False
+    import re
+
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
+    except OSError:
+        return False
+    return re.search(r"^\s*t\s+controlvector\s", text, re.MULTILINE) is not None
+
+
 def cmd_subdivide(args: argparse.Namespace) -> int:
     """nupatch subdivide MESH -n K -o OUT.obj: the refined control mesh with its tags (docs/cli.md)."""
     from export import subdivided  # --scheme / --normals / .glb (export/subdivided.py)
 
     if subdivided.wants_this(args):
+        if _has_control_vectors(args.mesh):
+            raise NupatchError("control vectors ([KSD] sec. 5) need --scheme catmark, no --normals and an .obj output", args.mesh)
         return subdivided.run_subdivide(args, _progress)
     from export.atomic import atomic_write_text
     from patching.mesh import format_obj
@@ -199,12 +215,26 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
         raise NupatchError(f"-n must be a number of steps >= 0, got {args.steps}", "-n")
     check_output_path(out)
     start = time.perf_counter()
-    mesh = read_control_mesh(mesh_path, args.intervals)
-    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
     comment = (
         f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
         f"angles {args.eigen_angles}, crease method {args.crease_method}"
     )
+    if _has_control_vectors(args.mesh):  # [KSD] sec. 5: docs/curves.md, surfaces
+        import warnings
+
+        from export.curves import subdivide_with_vectors
+
+        if args.crease_method != "uniform" or args.eigen_angles != "standard":
+            raise NupatchError("control vectors take the default --crease-method and --eigen-angles", args.mesh)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="control vector ignored")
+            mesh = read_control_mesh(mesh_path, args.intervals)
+        text = subdivide_with_vectors(mesh, mesh_path, args.steps, args.rules, comment)
+        atomic_write_text(out, text)
+        _progress(args, f"{args.steps} step(s) with control vectors, wrote {out}")
+        return 0
+    mesh = read_control_mesh(mesh_path, args.intervals)
+    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
     atomic_write_text(out, format_obj(refined, comment) + rules_tag(args.rules) + "\n")
     _progress(args, f"{refined.n_faces} faces from {mesh.n_faces} in {args.steps} step(s), wrote {out} in {time.perf_counter() - start:.2f} s")
     return 0

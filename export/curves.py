@@ -32,6 +32,7 @@ __all__ = [
     "to_build123d",
     "to_cadquery",
     "write_curve",
+    "subdivide_with_vectors",
 ]
 
 
@@ -49,7 +50,7 @@ def to_geom_curve(spline: BSplineCurve | Curve):
     from export.ocp_compat import TColgp_Array1OfPnt
     from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
-    if isinstance(spline, Curve):
+    if not isinstance(spline, BSplineCurve):  # a Curve or a ModifiedQuinticCurve
         spline = spline.limit()
     poles = _xyz(spline.poles)
     values, mults = np.unique(spline.knots, return_counts=True)
@@ -182,3 +183,30 @@ def write_curve(curve: Curve, path: str | os.PathLike, steps: int = 4) -> Path:
     with atomic_output(path) as tmp:
         writer(curve, tmp, path, steps)
     return path
+
+
+def subdivide_with_vectors(mesh, mesh_path: str | os.PathLike, steps: int, rules: str, comment: str) -> str | None:
+    """``nupatch subdivide`` of a quad mesh with ``t controlvector`` tags ([KSD] sec. 5,
+    ``patching.curves.surface_vectors``): the refined mesh's OBJ text with the surviving
+    vectors as tags, or None when the file has no such tag (the plain route applies)."""
+    from patching.curves.surface_vectors import format_vector_tags, parse_vector_tags, refine
+    from patching.mesh import format_obj
+    from patching.subdivision.catmark import rules_tag
+    from patching.topology.tables import Topology
+
+    path = Path(mesh_path)
+    if str(mesh_path) == "-" or path.suffix.lower() != ".obj":
+        return None
+    vectors, values = parse_vector_tags(path.read_text(encoding="utf-8-sig", errors="replace"), path.name)
+    if not vectors:
+        return None
+    if not np.all(Topology(mesh).edge_interval == 1.0):
+        raise UnsupportedError("control vectors need uniform knot intervals ([KSD] sec. 5 is uniform)", path.name)
+    from patching.subdivision.catmark import MAX_SUBDIVIDE_FACES
+
+    faces = int(mesh.face_sizes.sum()) * 4 ** (steps - 1) if steps else mesh.n_faces
+    if faces > MAX_SUBDIVIDE_FACES:
+        raise UnsupportedError(f"{steps} steps of {mesh.n_faces} faces make {faces:.3g} faces, more than "
+                               f"{MAX_SUBDIVIDE_FACES:,}: take fewer steps", path.name)
+    refined, kept, kept_values = refine(mesh, vectors, values, steps, rules=rules)
+    return format_obj(refined, comment) + format_vector_tags(kept, kept_values) + rules_tag(rules) + "\n"

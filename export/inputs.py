@@ -3,7 +3,7 @@
 ``read_control_mesh(source, intervals)`` picks the reader from the suffix (``.usd .usda .usdc
 .usdz``: ``export.usd``; anything else: OBJ), reads ``-`` from standard input (``.usda`` text
 when it starts with ``#usda``, else OBJ text; binary ``.usdc`` cannot stream) and applies the
-``--intervals`` rule (``patching.intervals``).  ``add_intervals_argument`` adds that option to
+``--intervals`` rule (``patching.topology.intervals``).  ``add_intervals_argument`` adds that option to
 a sub-command's parser (build, subdivide, info, render).
 """
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import patching
 from patching.errors import InputFileError
-from patching.intervals import INTERVAL_RULES, with_intervals
+from patching.topology.intervals import INTERVAL_RULES, with_intervals
 from patching.mesh import ControlMesh
 
 from .usd import USD_SUFFIXES

@@ -31,8 +31,8 @@ class BuildJob:
     mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
     deflection of tessellated formats (None: their default); options: the build's choices;
     pack: regular regions as multi-span B-spline faces (exact formats only); intervals: how
-    strips without interval tags get theirs (``patching.intervals``); cache: keep solved local
-    configurations on disk between builds (``export.solve_cache``; the command line's default)."""
+    strips without interval tags get theirs (``patching.topology.intervals``); cache: keep solved
+    local configurations on disk between builds (``export.solve_cache``; the command line's default)."""
 
     mesh: str
     out: str

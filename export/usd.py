@@ -11,9 +11,11 @@ mirrors, has its faces reversed so that normals point the way the prim's do.
 
 Knot intervals: the primvar ``nupatch:intervals``, one float per face-vertex (``faceVarying``:
 the edge from that face-vertex to the next one of its face), constant on strips; without it the
-``--intervals`` rule applies.  ``subdivisionScheme`` must be ``catmullClark`` (``none``, which
-Blender writes when it exports the subdivision modifier as geometry, is read as a Catmull-Clark
-control mesh too); ``loop`` and ``bilinear`` are refused.
+``--intervals`` rule applies.  ``subdivisionScheme`` must be ``catmullClark``; ``none`` (a
+polygonal mesh: Blender writes it when it applies the subdivision modifier to the geometry, or
+exports a mesh with no modifier) is read as a Catmull-Clark control mesh too, with a warning
+naming the prim, because building smooths what the file calls flat; ``loop`` and ``bilinear``
+are refused (``nupatch subdivide --scheme loop`` reads OBJ triangle meshes).
 
 Coordinates are taken as they are, in the stage's units (``metersPerUnit`` is not applied):
 the output files say millimetres, as for OBJ.  Errors name the file and the prim.
@@ -22,12 +24,13 @@ the output files say millimetres, as for OBJ.  Errors name the file and the prim
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from patching.errors import InputFileError, KnotError, MeshError, NupatchError, UnsupportedError
-from patching.mesh import ControlMesh, from_arrays
+from patching.mesh import ControlMesh, NupatchWarning, from_arrays
 
 __all__ = ["USD_SUFFIXES", "INTERVALS_PRIMVAR", "read_usd", "parse_usda", "write_usd"]
 
@@ -111,6 +114,10 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
             raise UnsupportedError(
                 f"subdivisionScheme '{scheme}' is not supported (nupatch reads catmullClark control meshes)", where
             )
+        if scheme == "none":
+            warnings.warn(NupatchWarning(
+                f"subdivisionScheme 'none' (a polygonal mesh) read as a Catmull-Clark control mesh ({where})"
+            ), stacklevel=2)
         points = _get(mesh.GetPointsAttr(), Usd)
         fvc = _get(mesh.GetFaceVertexCountsAttr(), Usd)
         fvi = _get(mesh.GetFaceVertexIndicesAttr(), Usd)

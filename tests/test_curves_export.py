@@ -163,6 +163,8 @@ BAD = {
     "vector on a missing vertex": (
         "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 3 0 0\nv 4 0 1\nl 1 2 3 4 5\nt controlvector 1/3/0 9 0 1 0\n", [], "vertex 9"),
     "no polyline": ("v 0 0 0\nv 1 0 0\n", [], "no polyline"),
+    "modified not quintic": (G_OBJ, ["-d", "3", "--modified"], "-d 5"),
+    "modified tolerance": (G_OBJ, ["-d", "5", "--modified", "--tolerance", "-1"], "positive"),
     "fractional even": ("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 3 0 0\nv 4 0 1\nv 5 0 0\nv 6 1 0\nl 1 2 3 4 5 6 7\n"
                         "t corner 1/1/0 3 0.5\n", ["-d", "4"], "odd degree"),
 }

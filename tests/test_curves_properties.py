@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -95,21 +96,127 @@ def test_sharp_vertex_is_a_C0_corner_at_the_control_point(d, seed):
     assert cosang < 1 - 1e-6  # a genuine corner for a generic polygon
 
 
-@settings(max_examples=8, deadline=None)
-@given(st.sampled_from([3, 5]), st.integers(0, 2**31))
-def test_limit_at_the_vertex_moves_monotonically_with_sharpness(d, seed):
-    """The limit point at a vertex approaches P_v monotonically as s grows (distance never
-    increases), odd degrees (the vertex has a parameter).  Degree 7 is left out: there the limit after one sharp step can overshoot
-    (docs/curves.md gives a polygon where the distance goes 0.026 -> 0.028 from s = 0 to 1)."""
+def _vertex_limit(d: int, P: np.ndarray, v: int, s: float) -> np.ndarray:
+    """The limit point of vertex v's descendant, read off the curve itself: odd d the exact
+    limit at the vertex's parameter (open polygon with sharp ends: parameter v); even d
+    (integer s) the refined polygon after s steps, child of v = last point of the left run,
+    then the centred B-spline values (the uniform limit stencil), independent of the runs'
+    parameterisation."""
+    n = len(P)
+    ends = {0: math.inf, n - 1: math.inf}
+    c = Curve(P, d, corners={**ends, v: s} if s else ends)
+    if d % 2:
+        return c.evaluate(float(v))
+    if s == math.inf:  # the point at the interior knot of multiplicity d
+        lim = c.limit()
+        values, counts = np.unique(lim.knots, return_counts=True)
+        return lim.evaluate(values[1:-1][counts[1:-1] == d][0])
+    from scipy.interpolate import BSpline
+
+    from patching.curves.runs import CREASE, run_refined_size
+
+    k = int(s)
+    m = v + 1
+    for _ in range(k):
+        m = run_refined_size(m, d, CREASE, CREASE)
+    Q = c.refine(k).points
+    offs = np.arange(-(d // 2), d // 2 + 1)
+    centre = np.nan_to_num(BSpline.basis_element(np.arange(d + 2.0), extrapolate=False)((d + 1) / 2 + offs))
+    return centre @ Q[m - 1 + offs]
+
+
+@settings(max_examples=6, deadline=None)
+@given(ANY, st.integers(0, 2**31), st.sampled_from([0.0, 0.5, 1.0, 2.0, 2.5, 3.0]))
+def test_vertex_limit_weights_are_the_curves_limit_at_the_vertex(d, seed, s):
+    """runs.vertex_limit_weights against the curve: P_v + sum_i w_i (d+_i + d-_i)."""
+    from patching.curves.runs import vertex_limit_weights
+
+    if d % 2 == 0:
+        s = float(math.floor(s))
     n = 3 * d + 6
     P = np.random.default_rng(seed).normal(size=(n, 2))
     v = n // 2
-    ends = {0: math.inf, n - 1: math.inf}
-    grid = [0, 0.25, 0.5, 0.75, 1, 1.5, 2, 2.5, 3, 4, math.inf]
-    pts = np.array([Curve(P, d, corners={**ends, v: s} if s else ends).evaluate(float(v)) for s in grid])
-    dist = np.linalg.norm(pts - P[v], axis=1)
+    w = vertex_limit_weights(d, s)
+    i = np.arange(1, d // 2 + 1)
+    expect = P[v] + w @ (P[v + i] + P[v - i] - 2 * P[v])
+    assert np.abs(_vertex_limit(d, P, v, s) - expect).max() < 1e-12
+
+
+def test_vertex_limit_weights_are_the_hand_derived_fractions():
+    """s = 0: the centred B-spline values; s = 1: one step of the paper's T_4 / T_5, then the
+    limit stencil (worked by hand: d = 5, rows (17, 14, 1)/32, (6, 20, 6)/32 and stencil
+    (1, 26, 66, 26, 1)/120 give 384/3840 and 32/3840; d = 4, rows (10, 5, 1)/16,
+    (2, 9, 5)/16 of [KSD]'s T_4 and stencil (1, 76, 230, 76, 1)/384 give 389/6144, 81/6144)."""
+    from patching.curves.runs import vertex_limit_weights
+
+    assert np.allclose(vertex_limit_weights(5, 0), [26 / 120, 1 / 120], atol=1e-15)
+    assert np.allclose(vertex_limit_weights(5, 1), [1 / 10, 1 / 120], atol=1e-15)
+    assert np.allclose(vertex_limit_weights(4, 0), [76 / 384, 1 / 384], atol=1e-15)
+    assert np.allclose(vertex_limit_weights(4, 1), [389 / 6144, 81 / 6144], atol=1e-15)
+    assert np.allclose(vertex_limit_weights(3, 2.5), [0.5 / 24 + 0.5 / 48], atol=1e-15)
+
+
+@pytest.mark.parametrize("d", [2, 3, 4, 5, 6, 7])
+def test_which_degrees_move_the_vertex_monotonically(d):
+    """Odd d and d = 2: every weight w_i(s) is >= 0 and non-increasing in s (integer s and,
+    odd d, the linear blend between), down to 0 at s = inf.  d = 4, 6: the paper's integer
+    rules themselves raise w_2 from s = 0 to s = 1 (1/384 -> 81/6144 for d = 4), so no
+    fractional rule can make the motion monotone there (docs/curves.md)."""
+    from patching.curves.runs import vertex_limit_weights
+
+    grid = [0, 1, 2, 3, 4, 6, 8] if d % 2 == 0 else [0, 0.25, 0.5, 1, 1.5, 2, 2.5, 3, 4, 6, 8]
+    W = np.array([vertex_limit_weights(d, s) for s in grid] + [vertex_limit_weights(d, math.inf)])
+    assert W.min() >= 0 and np.abs(W[-1]).max() == 0
+    rises = np.diff(W, axis=0).max()
+    if d in (4, 6):
+        assert W[1, 1] > 1.5 * W[0, 1]  # w_2 grows: 1/384 -> 0.0132 (d = 4), 0.0157 -> 0.0266 (d = 6)
+    else:
+        assert rises <= 1e-15
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.sampled_from([2, 3, 5, 7]), st.integers(0, 2**31))
+def test_limit_at_the_vertex_moves_monotonically_with_sharpness(d, seed):
+    """The distance of the vertex's limit point from P_v never increases with s when the
+    symmetric differences S_i = d+_i + d-_i have pairwise non-negative inner products (a
+    polygon bent to one side at v, e.g. locally convex); for d = 2, 3 there is one S_i, so
+    always.  |sum_i w_i(s) S_i|^2 = sum_ij w_i w_j S_i.S_j is then a sum of non-increasing
+    terms (the weights test above)."""
+    rng = np.random.default_rng(seed)
+    n = 3 * d + 6
+    v = n // 2
+    h = d // 2
+    theta = rng.uniform(0, np.pi / 2, h)  # S_i in one quarter plane: S_i . S_j >= 0
+    S = rng.uniform(0.1, 1.0, (h, 1)) * np.c_[np.cos(theta), np.sin(theta)]
+    D = rng.normal(size=(h, 2))
+    P = rng.normal(size=(n, 2)) * 3
+    P[v] = 0.0
+    for i in range(1, h + 1):
+        P[v + i], P[v - i] = (S[i - 1] + D[i - 1]) / 2, (S[i - 1] - D[i - 1]) / 2
+    grid = [0, 1, 2, 3, 4, math.inf] if d % 2 == 0 else [0, 0.25, 0.5, 0.75, 1, 1.5, 2, 2.5, 3, 4, math.inf]
+    dist = np.array([np.linalg.norm(_vertex_limit(d, P, v, s) - P[v]) for s in grid])
     assert dist[-1] < 1e-13
-    assert np.all(np.diff(dist) <= 1e-13)  # never moves away from the sharp position
+    assert np.all(np.diff(dist) <= 1e-13)
+
+
+def test_with_the_papers_integer_rules_the_vertex_can_move_away():
+    """Demonstrations with exact numbers (docs/curves.md): d = 5 with S_2 = -26 S_1 puts the
+    smooth limit point on P_v (13/60 - 26/120 = 0), and one sharp step moves it to
+    P_v - (14/120) S_1; d = 4 on the convex polygon (-2, 1), (-1, 0), (0, 0), (1, 0), (2, 1)
+    (S_1 = 0, S_2 = (0, 2)) moves it from 2/384 to 162/6144 away, five times farther."""
+    P5 = np.zeros((21, 2))
+    P5[:, 0] = np.arange(21) - 10.0
+    P5[11], P5[9] = (1.0, 0.2), (-1.0, 0.2)  # S_1 = (0, 0.4) at v = 10
+    P5[12], P5[8] = (2.0, -5.2), (-2.0, -5.2)  # S_2 = (0, -10.4) = -26 S_1
+    c0, c1 = (_vertex_limit(5, P5, 10, s) for s in (0, 1))
+    assert np.abs(c0 - P5[10]).max() < 1e-13
+    assert np.allclose(c1 - P5[10], -14 / 120 * np.array([0.0, 0.4]), atol=1e-13)
+    P4 = np.zeros((21, 2))
+    P4[:, 0] = np.arange(21) - 10.0
+    P4[:, 1] = np.maximum(np.abs(P4[:, 0]) - 1, 0)  # convex: flat over [-1, 1], then slope 1
+    c0, c1 = (_vertex_limit(4, P4, 10, s) for s in (0, 1))
+    assert np.allclose(c0, [0, 2 / 384], atol=1e-14)
+    assert np.allclose(c1, [0, 162 / 6144], atol=1e-14)
 
 
 @settings(max_examples=20, deadline=None)

@@ -1,4 +1,4 @@
-"""--intervals tags|uniform|chord|centripetal (patching/intervals.py, docs/input.md).
+"""--intervals tags|uniform|chord|centripetal (patching/topology/intervals.py, docs/input.md).
 
 The reference strips are computed here independently: a union-find over the opposite edges
 of every quad, in plain Python; the reference intervals are written as explicit OBJ interval
@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 import export
 import patching
-from patching.intervals import INTERVAL_RULES, strip_mean_lengths, with_intervals
+from patching.topology.intervals import INTERVAL_RULES, strip_mean_lengths, with_intervals
 from patching.mesh.obj import parse_obj
 
 REPO = Path(__file__).resolve().parent.parent

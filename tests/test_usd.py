@@ -316,22 +316,93 @@ def test_usda_on_standard_input(tmp_path):
     assert json.loads(result.stdout)["sharp_edges"] == 4
 
 
+BLENDER_CUBE = REPO / "tests" / "data" / "blender" / "creased_cube.usda"
+
+#: What was drawn in Blender (tests/data/blender/make_creased_cube.py): the cube [-1, 1]^3 moved
+#: to x = 10, in the order of the positions Blender chose, written here as the tagged OBJ a user
+#: would type: crease 1.0 on the top face's edges (sharpness 10 c^2 = 10), 0.5 on the vertical
+#: edge 0-1 (2.5), vertex crease 1.0 on vertex 0, Blender's boundary rule edgeOnly (2).
+BLENDER_CUBE_OBJ = """v 9 -1 -1
+v 9 -1 1
+v 9 1 -1
+v 9 1 1
+v 11 -1 -1
+v 11 -1 1
+v 11 1 -1
+v 11 1 1
+f 1 2 4 3
+f 3 4 8 7
+f 7 8 6 5
+f 5 6 2 1
+f 3 7 5 1
+f 8 4 2 6
+t crease 2/1/0 0 1 2.5
+t crease 2/1/0 1 3 10
+t crease 2/1/0 3 7 10
+t crease 2/1/0 7 5 10
+t crease 2/1/0 5 1 10
+t corner 1/1/0 0 10
+t interpolateboundary 1/0/0 2
+"""
+
+
+def check_blender_cube(path: Path, tmp_path: Path) -> None:
+    """The cube Blender exported builds as the tagged OBJ of what was drawn: the same tags on the
+    same edges (in world coordinates), the same surface, and in the B-rep exactly the four top
+    edges sharp (the 2.5 edge is semi-sharp, so smooth in the limit), the tagged corner on it."""
+    import export
+
+    usd = read_usd(path)
+    obj_path = tmp_path / "cube.obj"
+    obj_path.write_text(BLENDER_CUBE_OBJ)
+    obj = patching.read_mesh(obj_path)
+    np.testing.assert_array_equal(usd.vertices, obj.vertices)  # the world transform x + 10
+    assert usd.creases == obj.creases and usd.corners == obj.corners
+    assert usd.interpolate_boundary == 2
+    assert_same_surface(usd, obj)
+    surface = patching.build(usd)
+    report = export.check_continuity(surface)
+    # the semi-sharp edge refines the faces around it, so the top loop's four crease curves come
+    # in several B-rep edges each (the report lists the worst few): at z = 1, as many as and the
+    # same as the OBJ's
+    report_obj = export.check_continuity(patching.build(obj))
+    assert report.valid and report.n_free_edges == 0 and report.n_sharp_edges >= 4
+    assert report.n_sharp_edges == report_obj.n_sharp_edges
+    sharp = np.array([e.position for e in report.sharp_edges])
+    np.testing.assert_allclose(sharp[:, 2], 1.0, atol=1e-9)
+    assert sorted(map(tuple, np.round(sharp, 9))) == sorted(tuple(np.round(e.position, 9)) for e in report_obj.sharp_edges)
+    # the vertex crease makes vertex 0 a corner the surface interpolates (a patch corner there)
+    corners = np.array([net[i, j] for _, _, _, net in surface.patches() for i in (0, -1) for j in (0, -1)])
+    assert np.min(np.linalg.norm(corners - [9, -1, -1], axis=1)) < 1e-12 * surface.size
+
+
 def test_blender_exported_creased_cube(tmp_path):
-    bpy = pytest.importorskip("bpy")
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.mesh.primitive_cube_add()
-    cube = bpy.context.active_object
-    edge = cube.data.edges[0]
-    if hasattr(edge, "crease"):
-        for e in cube.data.edges[:4]:
-            e.crease = 1.0
-    else:
-        attr = cube.data.attributes.new("crease_edge", "FLOAT", "EDGE")
-        for i in range(4):
-            attr.data[i].value = 1.0
-    cube.modifiers.new("subd", "SUBSURF")
-    path = tmp_path / "blender.usda"
-    bpy.ops.wm.usd_export(filepath=str(path), export_subdivision="BEST_MATCH")
-    mesh = read_usd(path)
+    """A file Blender 5.0.1 wrote (committed with the script that wrote it)."""
+    check_blender_cube(BLENDER_CUBE, tmp_path)
+
+
+def test_blender_exports_the_creased_cube_the_same_way_today(tmp_path):
+    """Where ``bpy`` imports (it needs numpy < 2, so not in the test environment), a fresh export
+    by the installed Blender builds the same way."""
+    pytest.importorskip("bpy")
+    import runpy
+
+    script = runpy.run_path(str(BLENDER_CUBE.with_name("make_creased_cube.py")))
+    fresh = tmp_path / "fresh.usda"
+    script["creased_cube"](str(fresh))
+    check_blender_cube(fresh, tmp_path)
+
+
+def test_a_polygonal_mesh_prim_builds_with_a_warning_naming_it(tmp_path, run_cli):
+    """``subdivisionScheme = "none"`` says the mesh is flat polygons: it still builds (as a
+    Catmull-Clark control mesh, the only thing nupatch makes of a quad mesh), but the user is told."""
+    text = BLENDER_LIKE.replace('uniform token subdivisionScheme = "catmullClark"', 'uniform token subdivisionScheme = "none"')
+    assert text != BLENDER_LIKE
+    path = tmp_path / "flat.usda"
+    path.write_text(text)
+    with pytest.warns(patching.NupatchWarning, match=r"subdivisionScheme 'none'.*prim /Cube/Cube"):
+        mesh = read_usd(path)
     assert mesh.n_faces == 6 and len(mesh.creases) == 4
-    assert patching.build(mesh).n_patches == 6
+    result = run_cli("build", path, "-o", tmp_path / "flat.step")
+    assert result.returncode == 0 and (tmp_path / "flat.step").is_file()
+    assert "subdivisionScheme 'none'" in result.stderr and "/Cube/Cube" in result.stderr

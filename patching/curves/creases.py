@@ -46,10 +46,14 @@ from functools import lru_cache
 from math import comb
 
 import numpy as np
+import scipy.sparse as sp
 
 from .knots import insert_knots_matrix
 
-__all__ = ["CreaseScheme", "crease_scheme", "half_line_subdivision", "ghost_reflection"]
+__all__ = [
+    "CreaseScheme", "crease_scheme", "half_line_subdivision", "ghost_reflection", "modified_quintic_step",
+    "modified_quintic_operator",
+]
 
 #: SM - MT must vanish to this (double round-off of sums of ~10 terms of size <= 1)
 SOLVE_TOLERANCE = 1e-12
@@ -221,45 +225,51 @@ def ghost_reflection(index: int, n: int, left: bool, right: bool) -> dict[int, f
 
 
 def modified_quintic_step(n: int, closed: bool, sharpness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One step of the modified quintic scheme T~5 ([KSD] sec. 3.2.2, eq. (7)): dense (n' x n).
+    """``modified_quintic_operator`` as a dense matrix (small polygons, figures)."""
+    A, child = modified_quintic_operator(n, closed, sharpness)
+    return A.toarray(), child
+
+
+def modified_quintic_operator(n: int, closed: bool, sharpness: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+    """One step of the modified quintic scheme T~5 ([KSD] sec. 3.2.2, eq. (7)): (n' x n) sparse.
 
     At a sharp vertex the vertex point is P_v ([SSEL13]/32) and the two adjacent edge points are
     midpoints ([16, 16]/32); every other point takes the uniform quintic stencils
     [6, 20, 6]/32 and [1, 15, 15, 1]/32 on its own side of the crease (P_v counted as an
     ordinary point there).  0 < s < 1 blends these rows with the smooth ones by s; children of
-    sharp vertices get s - 1.  T~5 does not solve S M = M T: its limit has infinitely many
-    polynomial pieces near a crease, so it is only available by refinement (no exact export).
+    sharp vertices get s - 1.  The child of P_i is point 2 i.  T~5 does not solve S M = M T:
+    its limit has infinitely many polynomial pieces near a crease, so it is exported by
+    refinement to a tolerance (``curve.modified_quintic_limit``), never exactly.
     Open polygons: end vertices are sharp, the curve starts there.
     """
     s = np.asarray(sharpness, dtype=np.float64).copy()
     if not closed:
         s[[0, n - 1]] = np.inf
     m = 2 * n if closed else 2 * n - 1
-    A = np.zeros((m, n))
-    for i in range(n):  # vertex points, row 2 i
-        nb = [(i - 1) % n, i, (i + 1) % n] if closed or 0 < i < n - 1 else None
-        smooth = np.zeros(n)
-        if nb is not None:
-            for k, w in zip(nb, (6, 20, 6)):
-                smooth[k] += w / 32
-        sharp = np.zeros(n)
-        sharp[i] = 1.0
-        w = 1.0 if s[i] >= 1 else s[i]
-        A[2 * i] = w * sharp + (1 - w) * smooth
-    for i in range(n if closed else n - 1):  # edge points between i and i + 1, row 2 i + 1
-        j = (i + 1) % n
-        mid = np.zeros(n)
-        mid[i] += 0.5
-        mid[j] += 0.5
-        smooth = np.zeros(n)
-        idx = [(i - 1) % n, i, j, (j + 1) % n]
-        ok = closed or (i >= 1 and j <= n - 2)
-        if ok:
-            for k, w in zip(idx, (1, 15, 15, 1)):
-                smooth[k] += w / 32
-        # the edge point next to a sharp vertex is the midpoint (weight of the sharper end)
-        w = 1.0 if not ok else min(1.0, max(min(s[i], 1.0), min(s[j], 1.0)))
-        A[2 * i + 1] = w * mid + (1 - w) * smooth
+    i = np.arange(n)
+    interior = np.ones(n, dtype=bool) if closed else (i > 0) & (i < n - 1)
+    w = np.where(s >= 1, 1.0, s)
+    w = np.where(interior, w, 1.0)
+    rows = [2 * i]
+    cols = [i]
+    vals = [w]
+    for off, c in ((-1, 6), (0, 20), (1, 6)):  # smooth vertex rule, blended by 1 - w
+        rows.append(2 * i[interior])
+        cols.append((i[interior] + off) % n)
+        vals.append((1 - w[interior]) * c / 32)
+    e = np.arange(n if closed else n - 1)
+    j = (e + 1) % n
+    ok = np.ones(len(e), dtype=bool) if closed else (e >= 1) & (j <= n - 2)
+    we = np.where(ok, np.minimum(1.0, np.maximum(np.minimum(s[e], 1.0), np.minimum(s[j], 1.0))), 1.0)
+    rows += [2 * e + 1, 2 * e + 1]
+    cols += [e, j]
+    vals += [0.5 * we, 0.5 * we]
+    for off, c in ((-1, 1), (0, 15), (1, 15), (2, 1)):  # smooth edge rule, blended by 1 - w
+        rows.append(2 * e[ok] + 1)
+        cols.append((e[ok] + off) % n)
+        vals.append((1 - we[ok]) * c / 32)
+    A = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n)).tocsr()
+    A.eliminate_zeros()
     child = np.zeros(m)
-    child[0::2] = np.where(s >= 1, s - 1, 0.0)[: len(child[0::2])]
+    child[0::2] = np.where(s >= 1, s - 1, 0.0)
     return A, child

@@ -35,7 +35,7 @@ from .control_vectors import crease_parameter, vector_limit, vector_step
 from .runs import limit_operator, semi_sharp_step
 from .uniform import MAX_DEGREE, MIN_DEGREE
 
-__all__ = ["Curve", "BSplineCurve"]
+__all__ = ["Curve", "BSplineCurve", "ModifiedQuinticCurve", "ModifiedQuinticFit", "modified_quintic_limit"]
 
 
 @dataclass(frozen=True)
@@ -234,3 +234,108 @@ class Curve:
     @property
     def vectors(self) -> np.ndarray:
         return self._vectors
+
+
+@dataclass(frozen=True)
+class ModifiedQuinticFit:
+    """The result of ``modified_quintic_limit``: the B-spline, the steps taken and the error
+    bound measured against the refined T~5 polygon."""
+
+    curve: BSplineCurve
+    steps: int
+    error: float
+
+
+def modified_quintic_limit(
+    points, closed: bool = False, corners: dict[int, float] | None = None, tolerance: float = 1e-6,
+    max_steps: int = 14, check_steps: int = 5,
+) -> ModifiedQuinticFit:
+    """The modified quintic T~5 ([KSD] sec. 3.2.2, eq. (7)) as one quintic B-spline within
+    ``tolerance`` (absolute, the polygon's units).
+
+    T~5 has infinitely many polynomial pieces near a crease, so there is no exact B-spline.
+    After k steps of T~5 (``creases.modified_quintic_operator``) the polygon P_k is taken as the
+    control polygon of the exact quintic crease scheme T5 ([KSD] eq. (5); the same sharp
+    vertices, all infinitely sharp once the semi-sharp ones are used up), whose limit is a
+    B-spline (``Curve.limit``).  Away from the creases both schemes are uniform, so the two
+    limits differ only in a neighbourhood of each crease that halves with every step.  The
+    check: ``check_steps`` more steps of T~5 on P_k and of T5 on the same P_k give two polygons
+    with the same numbering (the child of P_i is point 2 i in both); their largest pointwise
+    distance is the error (as the steps grow it tends to the largest distance between the two
+    limits at equal parameters, an upper bound of the Hausdorff distance).  k grows until the
+    error is within ``tolerance``; UnsupportedError after ``max_steps``.
+    """
+    from .creases import modified_quintic_operator
+
+    P = np.asarray(points, dtype=np.float64)
+    n = len(P)
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise UnsupportedError(f"the tolerance must be a positive number, not {tolerance!r}")
+    ends = {} if closed else {0: math.inf, n - 1: math.inf}  # T~5's open ends are sharp
+    probe = Curve(P, 5, closed, corners={**(corners or {}), **ends})  # the tags' checks
+    s = probe.sharpness.copy()
+    if not closed:
+        s[[0, n - 1]] = math.inf
+    for k in range(max_steps + 1):
+        if not np.any((s > 0) & np.isfinite(s)):
+            sharp = {int(i): math.inf for i in np.flatnonzero(s == math.inf)}
+            candidate = Curve(P, 5, closed, corners=sharp)
+            Q5 = candidate.refine(check_steps).points
+            Qt, st = P, s
+            for _ in range(check_steps):
+                A, st = modified_quintic_operator(len(Qt), closed, st)
+                Qt = A @ Qt
+            error = float(np.linalg.norm(Qt - Q5, axis=1).max())
+            if error <= tolerance:
+                lim = candidate.limit()
+                return ModifiedQuinticFit(BSplineCurve(lim.knots / 2.0**k, lim.poles, 5), k, error)
+        A, s = modified_quintic_operator(len(P), closed, s)
+        P = A @ P
+    raise UnsupportedError(
+        f"the modified quintic did not come within {tolerance:g} in {max_steps} steps (error {error:.3g}): "
+        "give a larger --tolerance"
+    )
+
+
+class ModifiedQuinticCurve:
+    """A T~5 curve ([KSD] eq. (7)) with the interface the writers use: ``refine(k)`` (the T~5
+    polygon), ``limit()`` (``modified_quintic_limit`` within ``tolerance``), ``evaluate``.
+    ``tolerance`` None: 1e-6 of the polygon's bounding-box diagonal."""
+
+    degree = 5
+
+    def __init__(self, points, closed: bool = False, corners: dict[int, float] | None = None,
+                 tolerance: float | None = None, name: str = "curve", *, _sharpness=None) -> None:
+        n = len(np.asarray(points))
+        ends = {} if closed else {0: math.inf, n - 1: math.inf}  # T~5's open ends are sharp
+        probe = Curve(points, 5, closed, corners={**(corners or {}), **ends}, name=name, _sharpness=_sharpness)
+        self.points, self.closed, self.name = probe.points, probe.closed, name
+        self.sharpness = probe.sharpness
+        if tolerance is None:
+            diag = float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
+            tolerance = 1e-6 * (diag or 1.0)
+        self.tolerance = tolerance
+        self._fit: ModifiedQuinticFit | None = None
+
+    def refine(self, k: int = 1) -> "ModifiedQuinticCurve":
+        from .creases import modified_quintic_operator
+
+        P, s = self.points, self.sharpness.copy()
+        for _ in range(int(k)):
+            A, s = modified_quintic_operator(len(P), self.closed, s)
+            P = A @ P
+        return ModifiedQuinticCurve(P, self.closed, name=self.name, tolerance=self.tolerance, _sharpness=s)
+
+    def fit(self) -> ModifiedQuinticFit:
+        if self._fit is None:
+            corners = {int(i): float(x) for i, x in enumerate(self.sharpness) if x > 0}
+            self._fit = modified_quintic_limit(self.points, self.closed, corners, self.tolerance)
+        return self._fit
+
+    def limit(self) -> BSplineCurve:
+        """A quintic B-spline within ``tolerance`` of the T~5 limit (not exact: see
+        ``modified_quintic_limit``)."""
+        return self.fit().curve
+
+    def evaluate(self, t) -> np.ndarray:
+        return self.limit().evaluate(t)

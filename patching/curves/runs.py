@@ -22,6 +22,7 @@ every span's midpoint), solved densely for short runs and assembled from the cre
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from itertools import combinations
 from math import comb
@@ -45,6 +46,7 @@ __all__ = [
     "step_operator",
     "semi_sharp_step",
     "limit_operator",
+    "vertex_limit_weights",
 ]
 
 CREASE = "crease"
@@ -284,7 +286,12 @@ def semi_sharp_step(
     ``w_A = prod_(v in A) s_v prod_(v not in A) (1 - s_v)``, their children get 0.  For one
     fractional vertex at a time this is OpenSubdiv's ``s P_sharp + (1 - s) P_smooth``; the
     mixture over subsets keeps every stencil a convex combination (convex hull property).
-    Fractional blending needs an odd degree (interior vertices keep their index).
+    Why this rule for every odd d ([KSD] states the blend for cubics only): all later steps are
+    smooth in both branches, so by linearity the limit is ``(1 - f) c_floor(s) + f c_ceil(s)``,
+    the linear interpolation of the two neighbouring integer-sharpness limits; it adds no
+    motion of its own (``vertex_limit_weights``, docs/curves.md).  Fractional blending needs
+    an odd degree: for even d a sharp step gives 2n - 1 points where a smooth one gives 2n (the
+    vertex stays one point instead of splitting in two), so there is no pair to blend.
     """
     s = np.asarray(sharpness, dtype=np.float64)
     hard = s >= 1.0
@@ -352,3 +359,44 @@ def limit_operator(n: int, d: int, closed: bool, sharp: np.ndarray) -> tuple[np.
             rows.append(full[1:])  # the joint pole (the sharp vertex) is shared
         start += knots[-1]
     return np.concatenate(knots_all), sp.csr_matrix(np.vstack(rows))
+
+
+def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
+    """The limit point of an interior semi-sharp vertex as ``P_v + sum_i w_i (d+_i + d-_i)``.
+
+    ``d+-_i = P_(v +- i) - P_v`` (i = 1 .. floor(d/2); the vertex alone, no other tag within
+    d + 2 points); returns ``w`` (floor(d/2),).  "The limit at the vertex" is the limit point
+    of the vertex's descendant: after k = s sharp steps the vertex is still P_v, its
+    neighbours are the half-line crease rows ``creases.crease_scheme(d).T`` applied k times
+    (mirrored on the other side), and then smooth subdivision takes that point to the value
+    of the uniform B-spline at its centre: ``w_i(k) = sum_j l_j (T^k)_(j,i)``, l the centred
+    B-spline values (for odd d the curve point at the vertex's parameter, for even d at the
+    centre of the descendant's span, since the vertex has no knot of its own).  Fractional s
+    (odd d only, ``semi_sharp_step``): each blended step is followed by smooth ones only, so
+    by linearity the limit is ``(1 - f) w(floor s) + f w(ceil s)``.  s = inf gives w = 0.
+    """
+    d = int(degree)
+    s = float(sharpness)
+    h = d // 2
+    if math.isinf(s):
+        return np.zeros(h)
+    if s < 0 or math.isnan(s):
+        raise ValueError(f"bad sharpness {sharpness!r}")
+    lo = math.floor(s)
+    f = s - lo
+    if f and d % 2 == 0:
+        raise UnsupportedError(f"fractional sharpness {s:g} needs an odd degree, not {d}")
+    K = 4 * d + 8
+    T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
+    offs = np.arange(1, h + 1)
+    knots = np.arange(d + 2, dtype=np.float64)
+    from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
+
+    centre = np.nan_to_num(BSpline.basis_element(knots, extrapolate=False)((d + 1) / 2 + offs))
+
+    def at(k: int) -> np.ndarray:
+        Tk = np.linalg.matrix_power(T, k)
+        return centre @ Tk[1 : h + 1, 1 : h + 1]
+
+    w = at(lo)
+    return (1.0 - f) * w + f * at(lo + 1) if f else w

@@ -25,9 +25,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import NupatchError
-from .mesh import ControlMesh
-from .topology import Topology
+from ..errors import NupatchError
+from ..mesh import ControlMesh
+from .tables import Topology
 
 __all__ = ["INTERVAL_RULES", "strip_mean_lengths", "with_intervals"]
 
