@@ -203,3 +203,38 @@ def test_build_start_imports_only_what_it_needs():
     env = dict(os.environ, PYTHONPATH=str(REPO))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def _format_obj_line_by_line(mesh, comment=""):
+    """The OBJ writer as it was, one line at a time: the reference of the vectorised one."""
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
+    for f in range(mesh.n_faces):
+        lines.append("f " + " ".join(str(int(v) + 1) for v in mesh.face(f)))
+    for (a, b), d in sorted(mesh.intervals.items()):
+        lines.append(f"t interval 2/1/0 {a} {b} {d!r}")
+    for (a, b), s in sorted(mesh.creases.items()):
+        lines.append(f"t crease 2/1/0 {a} {b} {s!r}")
+    for v, s in sorted(mesh.corners.items()):
+        lines.append(f"t corner 1/1/0 {v} {s!r}")
+    for f in sorted(mesh.holes):
+        lines.append(f"t hole 1/0/0 {f}")
+    lines.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}")
+    return "\n".join(lines) + "\n"
+
+
+SHAPES = REPO.parent / "shared" / "opensubdiv-shapes"
+
+
+@pytest.mark.parametrize("name", ["catmark_nonquads", "catmark_hole_test1", "catmark_cube_corner4", "catmark_pawn"])
+def test_obj_writer_same_text(name):
+    from patching.mesh.obj import format_obj, read_obj
+    from patching.subdivision.catmark import subdivide
+
+    path = SHAPES / f"{name}.obj"
+    if not path.exists():
+        pytest.skip("OpenSubdiv shapes absent")
+    mesh = read_obj(path)
+    assert format_obj(mesh, "two\nlines") == _format_obj_line_by_line(mesh, "two\nlines")
+    refined = subdivide(mesh, 1)
+    assert format_obj(refined) == _format_obj_line_by_line(refined)
