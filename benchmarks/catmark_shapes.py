@@ -29,7 +29,7 @@ def build(tree: str, mesh: Path, out: Path, timeout: float) -> tuple[str, float,
     start = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-m", "export.cli", "build", str(mesh), "-o", str(out), "-q"],
-                              env=env, capture_output=True, text=True, timeout=timeout)
+                              env=env, capture_output=True, text=True, timeout=timeout, cwd=out.parent)  # not a checkout: -m puts cwd first on sys.path
         status = "ok" if proc.returncode == 0 else (proc.stderr.strip().splitlines() or ["failed"])[-1][:60]
     except subprocess.TimeoutExpired:
         status = f"> {timeout:g} s"

@@ -63,8 +63,8 @@ def main() -> None:
             for name, (tree, mode) in sides.items():
                 env = dict(os.environ, PYTHONPATH=tree, NUPATCH_CACHE_DIR=str(Path(tmp) / "cache"))
                 env.pop("PYTHONDONTWRITEBYTECODE", None)
-                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode], env=env, check=True,
-                                     capture_output=True, text=True).stdout
+                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode], env=env, check=True,  # cwd: not a checkout
+                                     capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
                 if run:
                     times[name].append(json.loads(out.strip().splitlines()[-1]))
     print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min)")

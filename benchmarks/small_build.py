@@ -56,11 +56,12 @@ assert writer.Write(sys.argv[2]) == IFSelect_RetDone
 """
 
 
-def timed_process(cmd: list[str], env: dict[str, str]) -> tuple[float, float]:
-    """(wall, user + system CPU) seconds of one child process."""
+def timed_process(cmd: list[str], env: dict[str, str], cwd: str) -> tuple[float, float]:
+    """(wall, user + system CPU) seconds of one child process, run in ``cwd`` (not a checkout:
+    ``python -m`` puts the working directory first on sys.path, before PYTHONPATH)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL, cwd=cwd)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -102,7 +103,7 @@ def main() -> None:
                     env["NUPATCH_CACHE_DIR"] = str(tmp / "cache")
                     flags = ["--no-cache"] if name == "no-cache" else []
                     cmd = [sys.executable, "-m", "export.cli", "build", args.mesh, "-o", str(tmp / f"{name}.step"), "-q", *flags, *args.extra]
-                t = timed_process(cmd, env)
+                t = timed_process(cmd, env, str(tmp))
                 if run:
                     times[name].append(t)
     print(f"{Path(args.mesh).name}: {surface.n_patches} faces, {args.runs} runs alternated, median (min)")

@@ -70,10 +70,10 @@ print("RESULT " + json.dumps({"faces": faces, "subdivide": t_sub, "total": time.
 """
 
 
-def timed_process(cmd: list[str], env=None) -> tuple[float, float, str]:
+def timed_process(cmd: list[str], env=None, cwd=None) -> tuple[float, float, str]:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    out = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True).stdout
+    out = subprocess.run(cmd, check=True, env=env, capture_output=True, text=True, cwd=cwd).stdout
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
@@ -114,7 +114,7 @@ def main() -> None:
                 info = json.loads(res[2].split("RESULT ", 1)[1])
                 theirs.append(info["subdivide"])
                 ours_whole.append(timed_process([sys.executable, "-m", "export.cli", "subdivide", str(path), "-n", str(level),
-                                                 "--rules", "opensubdiv", "-o", str(tmp / "n.obj"), "-q"], env)[:2])
+                                                 "--rules", "opensubdiv", "-o", str(tmp / "n.obj"), "-q"], env, tmp)[:2])
                 theirs_whole.append(timed_process([args.bpy, str(script), str(path), str(tmp / "b.obj"), str(level), str(tags), "whole"])[:2])
             print(f"  level {level}: {faces} faces (Blender {info['faces']})")
             print(f"    in process   nupatch {min(ours):6.3f} s = {faces / min(ours) / 1e6:5.2f} M faces/s;"
