@@ -165,7 +165,7 @@ def umask() -> int:
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike, empty_error: type[Exception] = OutputError) -> Iterator[Path]:
+def atomic_output(path: str | os.PathLike, empty_error: type[Exception] = OutputError, durable: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` if the block succeeds.
 
     Only when the block ends without an exception, the file is non-empty and on disk (fsync)
@@ -178,7 +178,9 @@ def atomic_output(path: str | os.PathLike, empty_error: type[Exception] = Output
     that leaves an empty file raises ``empty_error``.  Temporary names are ``temporary_name``'s
     (they fit any legal name); those a killed run left for ``path`` are removed first.
     ``path`` ``-`` is standard output: the file is made in the temporary directory and copied
-    to stdout only once complete, so a failure writes nothing there either.
+    to stdout only once complete, so a failure writes nothing there either.  ``durable=False``
+    skips the fsync (still atomic for readers; a crash may leave the old file or a damaged new
+    one: for files whose readers check them, such as ``export.solve_cache``'s entries).
     """
     to_stdout = str(path) == STDOUT
     path = Path(path)
@@ -217,7 +219,7 @@ def atomic_output(path: str | os.PathLike, empty_error: type[Exception] = Output
                 sys.stdout.flush()
                 shutil.copyfileobj(written, sys.stdout.buffer)
                 sys.stdout.flush()
-            else:
+            elif durable:
                 os.fsync(written.fileno())  # the data is on disk before the name points at it
         if not to_stdout:
             os.replace(tmp, path)

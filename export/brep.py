@@ -484,7 +484,7 @@ def patch_components(topo) -> tuple[np.ndarray, np.ndarray]:
     """(label per patch, closed per component): patches joined through shared edges; a
     component is closed when each of its edges is used twice (``PatchTopology``)."""
     from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from patching.util.graph import connected_components
 
     pieces = topo.pieces
     p = np.shape(topo.corner_vertex)[0]

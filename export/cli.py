@@ -119,7 +119,7 @@ def _jobs(args: argparse.Namespace) -> list:
         seen[out.resolve()] = name
         fmt = format_of(out, args.format)
         check_output_path(out)
-        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, _options(args), args.pack, args.intervals))
+        jobs.append(BuildJob(str(mesh_path), str(out), fmt, args.tolerance, _options(args), args.pack, args.intervals, not args.no_cache))
     return jobs
 
 
@@ -375,6 +375,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--pack", action="store_true",
         help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
+    )
+    p.add_argument(
+        "--no-cache", action="store_true",
+        help="solve every local configuration afresh, without the on-disk cache of solved ones "
+        "($XDG_CACHE_HOME/nupatch; also NUPATCH_NO_CACHE=1)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
     add_intervals_argument(p)

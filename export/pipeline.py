@@ -31,7 +31,8 @@ class BuildJob:
     mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
     deflection of tessellated formats (None: their default); options: the build's choices;
     pack: regular regions as multi-span B-spline faces (exact formats only); intervals: how
-    strips without interval tags get theirs (``patching.topology.intervals``)."""
+    strips without interval tags get theirs (``patching.topology.intervals``); cache: keep solved
+    local configurations on disk between builds (``export.solve_cache``; the command line's default)."""
 
     mesh: str
     out: str
@@ -40,6 +41,7 @@ class BuildJob:
     options: BuildOptions = field(default_factory=BuildOptions)
     pack: bool = False
     intervals: str = "tags"
+    cache: bool = False
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,13 @@ class BuildResult:
 def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -> tuple[int, int]:
     """Read, build, make the B-rep and write one mesh; returns (faces, patches).  ``stage(name)``
     is called as each stage starts.  Raises the NupatchError family on bad input."""
+    from export.solve_cache import using_disk_cache
+
+    with using_disk_cache(job.cache):
+        return _run_build(job, stage)
+
+
+def _run_build(job: BuildJob, stage: Callable[[str], None]) -> tuple[int, int]:
     from export.brep import to_shape
     from export.formats import write
     from export.inputs import read_control_mesh

@@ -19,7 +19,10 @@ import numpy as np
 
 import patching
 from patching.errors import NupatchError
-from patching.shading import SubdividedMesh, shading_operator
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # patching.shading (and patching.loop) only when a subdivide needs them: every CLI start imports this module
+    from patching.shading import SubdividedMesh
 
 from .atomic import atomic_output
 
@@ -87,6 +90,7 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
 def run_subdivide(args: argparse.Namespace, progress=None) -> int:
     """``nupatch subdivide`` with ``--scheme``/``--normals``/``.glb``."""
     from export.atomic import check_output_path
+    from patching.shading import shading_operator
 
     mesh_path, out = Path(args.mesh), Path(args.output)
     suffix = out.suffix.lower()

@@ -13,6 +13,16 @@ REPO = Path(__file__).resolve().parent.parent
 SHAPES = REPO.parent / "shared" / "opensubdiv-shapes"
 NUPATCH = [sys.executable, "-m", "export.cli"]
 
+# The command line keeps solved local configurations on disk (export.solve_cache): the tests'
+# commands use a cache of their own, removed at exit, never the user's.
+if "NUPATCH_CACHE_DIR" not in os.environ:
+    import atexit
+    import shutil
+    import tempfile
+
+    os.environ["NUPATCH_CACHE_DIR"] = tempfile.mkdtemp(prefix="nupatch-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["NUPATCH_CACHE_DIR"], True)
+
 
 def shape_files(prefix: str = "catmark_") -> list[Path]:
     """The OpenSubdiv regression shapes, or [] where the folder is absent."""

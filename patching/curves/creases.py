@@ -47,8 +47,6 @@ from math import comb
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.interpolate import BSpline
-from scipy.optimize import least_squares
 
 from .knots import insert_knots_matrix
 
@@ -102,6 +100,9 @@ def half_line_subdivision(degree: int, size: int) -> np.ndarray:
 @lru_cache(maxsize=None)
 def crease_scheme(degree: int) -> CreaseScheme:
     """Solve S M = M T for the crease rule of degree ``degree`` (module docstring)."""
+    from scipy.interpolate import BSpline  # here, not at import: scipy.interpolate and
+    from scipy.optimize import least_squares  # scipy.optimize cost every CLI start ~0.5 s
+
     d = degree
     c = (d - 1) // 2
     J = d - c

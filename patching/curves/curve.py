@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.interpolate import BSpline
 
 from ..errors import MeshError, TagError, UnsupportedError
 from .control_vectors import crease_parameter, vector_limit, vector_step
@@ -53,6 +52,8 @@ class BSplineCurve:
 
     def evaluate(self, t) -> np.ndarray:
         """Points at parameters ``t`` (scalar or array) in ``domain``."""
+        from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
+
         return BSpline(self.knots, self.poles, self.degree, extrapolate=False)(np.clip(t, *self.domain))
 
     def split_at_sharp(self) -> list["BSplineCurve"]:

@@ -29,7 +29,6 @@ from math import comb
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.interpolate import BSpline
 
 from ..errors import UnsupportedError
 from .creases import crease_scheme, ghost_reflection
@@ -391,6 +390,8 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
     T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
     offs = np.arange(1, h + 1)
     knots = np.arange(d + 2, dtype=np.float64)
+    from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
+
     centre = np.nan_to_num(BSpline.basis_element(knots, extrapolate=False)((d + 1) / 2 + offs))
 
     def at(k: int) -> np.ndarray:

@@ -127,10 +127,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from patching.errors import KnotError, TagError
 from patching.options import ANGLES
+from patching.util.solve_cache import lookup
 
 __all__ = ["AngleConfiguration", "angle_configuration", "MODES"]
 
@@ -590,6 +590,8 @@ def _optimise(dbar, st, theta0, theta_hat, l_hat, omega, max_iterations, symmetr
     strongly coupled and the alternation zig-zags: valence 16 needed more than 200 iterations;
     now 4 to 10 are typical.)
     """
+    from scipy.optimize import least_squares  # here: importing scipy.optimize costs a small build ~0.4 s
+
     prob = _Problem(dbar, st, theta_hat, l_hat, omega, symmetries)
     chart = prob.chart
     if chart.free.size == 0:
@@ -624,6 +626,25 @@ def _optimise(dbar, st, theta0, theta_hat, l_hat, omega, max_iterations, symmetr
             return theta, it, True
         cost = new_cost
     return theta, max_iterations, False  # Remark 2: keep the current iterate
+
+
+def _optimise_cached(problem: tuple, dbar, st, *args):
+    """``_optimise`` through the persistent cache of ``patching.util.solve_cache`` (when one is
+    installed): an entry is trusted only if its angles are in (0, pi) and close every sector."""
+
+    def solve():
+        theta, iterations, converged = _optimise(dbar, st, *args)
+        return theta, np.array([iterations, float(converged)])
+
+    def valid(arrays) -> bool:
+        theta, info = arrays
+        return (
+            theta.shape == (st.n,) and info.shape == (2,) and bool(np.all((theta > 0) & (theta < math.pi)))
+            and all(abs(theta[list(sector)].sum() - total) <= 1e-12 for sector, total in zip(st.sectors, st.sums))
+        )
+
+    theta, info = lookup("angle_configuration", problem, 2, solve, valid)
+    return theta, int(info[0]), bool(info[1])
 
 
 def _symmetrised(theta: np.ndarray, symmetries, st: _Structure) -> np.ndarray:
@@ -668,8 +689,8 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
         if mode == "default" and not (symmetries and st.pair is not None):
             theta = theta_default
         else:
-            theta, iterations, converged = _optimise(
-                dbar, st, theta_default, theta_hat, l_hat, omega, max_iterations, symmetries
+            theta, iterations, converged = _optimise_cached(
+                (key, mode, omega, max_iterations, sharp), dbar, st, theta_default, theta_hat, l_hat, omega, max_iterations, symmetries
             )
         if symmetries:
             theta = _symmetrised(theta, symmetries, st)

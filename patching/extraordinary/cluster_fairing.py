@@ -49,9 +49,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from patching.util.graph import connected_components
 
 from patching.extraordinary.anchor_fairing import thin_plate_matrices
 from patching.extraordinary.g1_constraints import fifth_difference, spoke_equations
@@ -252,6 +251,8 @@ class ClusterFairing:
         equations (R_1^T y = -C_s[piv] s, triangular; the dependent ones hold since the per-EP
         steps show the system solvable for every s), and w minimising the energy on Z
         (positive definite there: mu > 0)."""
+        import scipy.linalg as sla  # here: only clusters of EPs joined by spokes need it
+
         huu, hus = h[:, :nu], h[:, nu:]
         scale = float(np.mean(np.diag(huu)))
         mu = MU * scale if scale > 0.0 else 1.0  # every face a hole: nearest to the extraction

@@ -67,6 +67,7 @@ from patching.topology.features import CORNER_SECTOR, CREASE_SECTOR, Features
 from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
 from patching.surface import CORNER_PARAMETERS
 from patching.topology.tables import Topology
+from patching.util.solve_cache import lookup
 
 __all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
@@ -326,6 +327,20 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 
 @lru_cache(maxsize=4096)
 def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
+    """``_red_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one is
+    installed; an entry is trusted if it is (1 + 3n) x (1 + 3n) with rows summing to 1)."""
+    size = 1 + 3 * n
+
+    def valid(arrays) -> bool:
+        (k,) = arrays
+        return k.shape == (size, size) and bool(np.all(np.abs(k.sum(axis=1) - 1.0) <= 1e-9))
+
+    (k,) = lookup("red_operator", (n, key, pinned, gap, skip), 1, lambda: [_red_solve(n, key, pinned, gap, skip)], valid)
+    k.setflags(write=False)
+    return k
+
+
+def _red_solve(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.

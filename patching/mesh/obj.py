@@ -287,17 +287,39 @@ def _values_for(tag: str, floats: list[float], count: int, loc: str) -> list[flo
 def format_obj(mesh: ControlMesh, comment: str = "") -> str:
     """The OBJ text of a control mesh with its tags, so that ``parse_obj`` reads it back
     (``export.write_obj`` writes it to a file atomically)."""
-    lines = [f"# {line}" for line in comment.splitlines()]
-    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
-    for f in range(mesh.n_faces):
-        lines.append("f " + " ".join(str(int(v) + 1) for v in mesh.face(f)))
-    for (a, b), d in sorted(mesh.intervals.items()):
-        lines.append(f"t interval 2/1/0 {a} {b} {d!r}")
-    for (a, b), s in sorted(mesh.creases.items()):
-        lines.append(f"t crease 2/1/0 {a} {b} {s!r}")
-    for v, s in sorted(mesh.corners.items()):
-        lines.append(f"t corner 1/1/0 {v} {s!r}")
-    for f in sorted(mesh.holes):
-        lines.append(f"t hole 1/0/0 {f}")
-    lines.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}")
-    return "\n".join(lines) + "\n"
+    # One %-format of a repeated template per kind of line: the loop over lines runs in C
+    # (37k faces: 0.39 s before, line by line).  "%r" is repr, as f"{x!r}" was, and "%d" of a
+    # Python int is str(), so the text is the same to the byte.
+    parts = [f"# {line}\n" for line in comment.splitlines()]
+    parts.append(_repeat("v %r %r %r\n", mesh.vertices.tolist()))
+    parts.append(_face_text(mesh))
+    parts.append(_repeat("t interval 2/1/0 %d %d %r\n", [(a, b, d) for (a, b), d in sorted(mesh.intervals.items())]))
+    parts.append(_repeat("t crease 2/1/0 %d %d %r\n", [(a, b, c) for (a, b), c in sorted(mesh.creases.items())]))
+    parts.append(_repeat("t corner 1/1/0 %d %r\n", sorted(mesh.corners.items())))
+    parts.append(_repeat("t hole 1/0/0 %d\n", [(f,) for f in sorted(mesh.holes)]))
+    parts.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}\n")
+    return "".join(parts)
+
+
+def _repeat(template: str, rows: list) -> str:
+    """``template`` filled with each row (a sequence of its fields), all rows in one format."""
+    if not rows:
+        return ""
+    return (template * len(rows)) % tuple(x for row in rows for x in row)
+
+
+def _face_text(mesh: ControlMesh) -> str:
+    """The ``f`` lines, 1-based, in face order: one format per face size, then interleaved."""
+    sizes = mesh.face_sizes
+    if sizes.size == 0:
+        return ""
+    kinds = np.unique(sizes)
+    if kinds.size == 1:
+        k = int(kinds[0])
+        return _repeat("f" + " %d" * k + "\n", (mesh.face_vertices.reshape(-1, k) + 1).tolist())
+    lines = np.empty(sizes.size, dtype=object)
+    for k in kinds.tolist():
+        sel = np.flatnonzero(sizes == k)
+        verts = mesh.face_vertices[mesh.face_offsets[sel][:, None] + np.arange(k)] + 1
+        lines[sel] = _repeat("f" + " %d" * k + "\n", verts.tolist()).splitlines(keepends=True)
+    return "".join(lines.tolist())

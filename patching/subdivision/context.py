@@ -10,7 +10,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from patching.util.graph import connected_components
 
 from patching.mesh.control_mesh import INFINITELY_SHARP, ControlMesh
 from patching.rules.catmark import (

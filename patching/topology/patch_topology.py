@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from patching.util.graph import connected_components
 
 from patching.errors import UnsupportedError
 from patching.surface import PatchTopology

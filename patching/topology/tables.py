@@ -12,7 +12,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from patching.util.graph import connected_components
 
 from patching.errors import KnotError, MeshError, TagError
 from patching.mesh.control_mesh import ControlMesh

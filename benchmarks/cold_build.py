@@ -1,0 +1,78 @@
+"""Cold builds of an EP-dense mesh: ``build_operator`` in a fresh process (no in-process cache
+warm), without the on-disk cache of solved local configurations and with it (filled by a
+warm-up round), alternated in one run; optionally a second checkout (``--before DIR``) in the
+same rotation.  The mesh is ``benchmarks/build.py``'s "coarse" one: an icosphere's triangles
+split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
+drawn from {1, 2, 5} per strip.  Each child prints the wall and CPU seconds of the build alone
+(the mesh read and the imports excluded).  Run by hand:
+``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+CHILD = r"""
+import json, sys, time
+import patching
+mesh = patching.read_mesh(sys.argv[1])
+if sys.argv[2] == "cache":
+    from export.solve_cache import using_disk_cache
+    context = using_disk_cache()
+else:
+    import contextlib
+    context = contextlib.nullcontext()
+with context:
+    wall, cpu = time.perf_counter(), time.process_time()
+    op = patching.build_operator(mesh)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz)}))
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without a cache")
+    args = parser.parse_args()
+
+    from build import ep_mesh
+    from export import write_obj
+
+    mesh = ep_mesh("coarse")
+    sides = {"no cache": (str(ROOT), "none"), "cache": (str(ROOT), "cache")}
+    if args.before:
+        sides["before"] = (str(Path(args.before).resolve()), "none")
+    times: dict[str, list[dict]] = {name: [] for name in sides}
+    with tempfile.TemporaryDirectory() as tmp:
+        obj = Path(tmp) / "coarse.obj"
+        write_obj(mesh, obj)
+        for run in range(args.runs + 1):  # the first round fills the cache and the .pyc files
+            for name, (tree, mode) in sides.items():
+                env = dict(os.environ, PYTHONPATH=tree, NUPATCH_CACHE_DIR=str(Path(tmp) / "cache"))
+                env.pop("PYTHONDONTWRITEBYTECODE", None)
+                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode], env=env, check=True,  # cwd: not a checkout
+                                     capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
+                if run:
+                    times[name].append(json.loads(out.strip().splitlines()[-1]))
+    print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min)")
+    for name, rows in times.items():
+        wall = np.array([r["wall"] for r in rows])
+        cpu = np.array([r["cpu"] for r in rows])
+        print(f"  {name:9s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})  nnz {rows[0]['nnz']}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,240 @@
+"""The speed work keeps every result identical: connected components in numpy against scipy's
+csgraph, the persistent cache of solved configurations (hits give the same operator to the
+bit, damaged or implausible entries are ignored and rewritten, --no-cache and NUPATCH_NO_CACHE
+write nothing), and the imports a build does not need stay out of ``nupatch``'s start."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.sparse.csgraph import connected_components as scipy_components
+
+import patching
+from export.solve_cache import DiskStore, using_disk_cache
+from patching.util import solve_cache
+from patching.util.graph import connected_components
+
+REPO = Path(__file__).resolve().parent.parent
+L_BRACKET = REPO / "models" / "l_bracket.obj"
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 40).flatmap(lambda n: st.tuples(st.just(n), st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=60))))
+def test_components_match_scipy(case):
+    n, edges = case
+    a = np.array([e[0] for e in edges], dtype=np.int64)
+    b = np.array([e[1] for e in edges], dtype=np.int64)
+    graph = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    ref_count, ref_labels = scipy_components(graph, directed=False)
+    assert count == ref_count
+    np.testing.assert_array_equal(labels, ref_labels)
+
+
+def test_components_long_chains_and_explicit_zeros():
+    rng = np.random.default_rng(3)
+    order = rng.permutation(5000)  # one path visiting the nodes in random order, and a zero weight
+    graph = sp.coo_matrix((np.r_[np.zeros(1), np.ones(4998)], (order[:-1], order[1:])), shape=(5001, 5001))
+    count, labels = connected_components(graph)
+    ref = scipy_components(graph, directed=False)
+    assert count == ref[0] == 2
+    np.testing.assert_array_equal(labels, ref[1])
+
+
+def _operator(mesh, store):
+    _clear()  # the in-process caches would hide the persistent one
+    previous = solve_cache.set_store(store)
+    try:
+        return patching.build_operator(mesh).matrix.tocsr()
+    finally:
+        solve_cache.set_store(previous)
+        _clear()
+
+
+def _clear():
+    """Empty every in-process (lru) cache of the package, so that each solve asks the store."""
+    for name, module in list(sys.modules.items()):
+        if name.startswith("patching.") and module is not None:
+            for value in list(vars(module).values()):
+                if callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
+                    value.cache_clear()
+
+
+@pytest.fixture(scope="module")
+def bracket():
+    mesh = patching.read_mesh(L_BRACKET)
+    return mesh, _operator(mesh, None)
+
+
+def _same(m1, m2):
+    assert m1.shape == m2.shape
+    assert (m1 != m2).nnz == 0  # bit for bit
+
+
+class CountingStore(solve_cache.MemoryStore):
+    def __init__(self) -> None:
+        super().__init__()
+        self.hits = self.misses = 0
+
+    def get(self, key):
+        data = super().get(key)
+        self.hits += data is not None
+        self.misses += data is None
+        return data
+
+
+def test_cache_hits_give_the_same_operator(bracket):
+    mesh, reference = bracket
+    store = CountingStore()
+    _same(_operator(mesh, store), reference)  # fills the store
+    assert store.entries and store.hits == 0 and store.misses == len(store.entries)
+    first = dict(store.entries)
+    store.misses = 0
+    _same(_operator(mesh, store), reference)  # every solve from the store (a cached anchor
+    assert store.hits and store.misses == 0 and store.entries == first  # needs no eigen-structure)
+
+
+@pytest.mark.parametrize("damage", ["flip", "truncate", "empty", "other_key", "implausible"])
+def test_damaged_entries_are_ignored(bracket, damage):
+    mesh, reference = bracket
+    store = solve_cache.MemoryStore()
+    _operator(mesh, store)
+    good = dict(store.entries)
+    keys = sorted(good)
+    for i, key in enumerate(keys):
+        data = good[key]
+        if damage == "flip":
+            data = data[:-3] + bytes([data[-3] ^ 0x10]) + data[-2:]
+        elif damage == "truncate":
+            data = data[: len(data) // 2]
+        elif damage == "empty":
+            data = b""
+        elif damage == "other_key":
+            data = good[keys[(i + 1) % len(keys)]]  # a well-formed entry of another problem
+        else:  # well-formed and for this key, but values no solve gives (angles > pi, weights
+            # not summing to 1): each problem's validation refuses them
+            count = next(c for c in range(1, 10) if solve_cache.decode(key, data, c) is not None)
+            data = solve_cache.encode(key, [np.full_like(a, 4.0) for a in solve_cache.decode(key, data, count)])
+        store.entries[key] = data
+    _same(_operator(mesh, store), reference)
+    if len(keys) > 1 or damage != "other_key":
+        assert store.entries == good  # rewritten by the fresh solves
+
+
+def test_entry_codec_round_trip():
+    arrays = [np.array([0.1, np.pi / 3, 1e-300]), np.arange(6.0).reshape(2, 3)]
+    data = solve_cache.encode("k", arrays)
+    back = solve_cache.decode("k", data, 2)
+    for a, b in zip(arrays, back):
+        assert a.tobytes() == b.tobytes()
+    assert solve_cache.decode("k", data, 3) is None
+    assert solve_cache.decode("j", data, 2) is None
+    assert solve_cache.decode("k", solve_cache.encode("k", [np.array([np.nan])]), 1) is None
+
+
+def test_disk_store_atomic_and_unwritable(tmp_path, bracket):
+    mesh, reference = bracket
+    store = DiskStore(tmp_path / "cache")
+    _same(_operator(mesh, store), reference)
+    files = sorted(p for p in (tmp_path / "cache").rglob("*") if p.is_file())
+    assert files and all(p.parent.name == p.name[:2] for p in files)  # no temporaries left
+    _same(_operator(mesh, store), reference)
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file where the cache directory should be")
+    _same(_operator(mesh, DiskStore(blocked)), reference)  # no cache, no error
+
+
+def test_disk_store_concurrent_writers(tmp_path):
+    """Processes writing the same entries at once: every entry left is whole."""
+    code = (
+        "import sys, numpy as np\n"
+        "from export.solve_cache import DiskStore\n"
+        "from patching.util.solve_cache import encode\n"
+        "s = DiskStore(sys.argv[1])\n"
+        "for i in range(200):\n"
+        "    s.put(f'{i % 7:02d}key', encode(f'{i % 7:02d}key', [np.arange(20000.0) + i % 7]))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], env=env) for _ in range(3)]
+    assert all(p.wait(timeout=120) == 0 for p in procs)
+    store = DiskStore(tmp_path)
+    for k in range(7):
+        key = f"{k:02d}key"
+        (arr,) = solve_cache.decode(key, store.get(key), 1)
+        np.testing.assert_array_equal(arr, np.arange(20000.0) + k)
+    assert sum(1 for p in tmp_path.rglob("*") if p.is_file()) == 7
+
+
+def test_cli_cache_switches(tmp_path, run_cli, monkeypatch):
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("NUPATCH_CACHE_DIR", str(cache))
+    entries = lambda: sorted(p.name for p in cache.rglob("*") if p.is_file()) if cache.exists() else []  # noqa: E731
+    out = tmp_path / "a.step"
+    assert run_cli("build", L_BRACKET, "-o", out, "-q", "--no-cache").returncode == 0
+    assert entries() == []
+    monkeypatch.setenv("NUPATCH_NO_CACHE", "1")
+    assert run_cli("build", L_BRACKET, "-o", out, "-q").returncode == 0
+    assert entries() == []
+    monkeypatch.delenv("NUPATCH_NO_CACHE")
+    assert run_cli("build", L_BRACKET, "-o", out, "-q").returncode == 0
+    assert entries()
+    with using_disk_cache(root=cache) as store:
+        assert store is not None and all(store.get(k) for k in entries())
+
+
+def test_build_start_imports_only_what_it_needs():
+    """Parsing ``nupatch build``'s command line and importing the build path loads no
+    scipy.optimize / interpolate / csgraph / linalg and no Loop or shading modules."""
+    code = (
+        "import sys, export.cli, export.pipeline, export.brep, export.step, export.formats, export.inputs\n"
+        "export.cli._parser()\n"
+        "bad = [m for m in ('scipy.optimize', 'scipy.interpolate', 'scipy.sparse.csgraph', 'scipy.linalg',"
+        " 'patching.loop', 'patching.shading') if m in sys.modules]\n"
+        "print(' '.join(bad))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def _format_obj_line_by_line(mesh, comment=""):
+    """The OBJ writer as it was, one line at a time: the reference of the vectorised one."""
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
+    for f in range(mesh.n_faces):
+        lines.append("f " + " ".join(str(int(v) + 1) for v in mesh.face(f)))
+    for (a, b), d in sorted(mesh.intervals.items()):
+        lines.append(f"t interval 2/1/0 {a} {b} {d!r}")
+    for (a, b), s in sorted(mesh.creases.items()):
+        lines.append(f"t crease 2/1/0 {a} {b} {s!r}")
+    for v, s in sorted(mesh.corners.items()):
+        lines.append(f"t corner 1/1/0 {v} {s!r}")
+    for f in sorted(mesh.holes):
+        lines.append(f"t hole 1/0/0 {f}")
+    lines.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}")
+    return "\n".join(lines) + "\n"
+
+
+SHAPES = REPO.parent / "shared" / "opensubdiv-shapes"
+
+
+@pytest.mark.parametrize("name", ["catmark_nonquads", "catmark_hole_test1", "catmark_cube_corner4", "catmark_pawn"])
+def test_obj_writer_same_text(name):
+    from patching.mesh.obj import format_obj, read_obj
+    from patching.subdivision.catmark import subdivide
+
+    path = SHAPES / f"{name}.obj"
+    if not path.exists():
+        pytest.skip("OpenSubdiv shapes absent")
+    mesh = read_obj(path)
+    assert format_obj(mesh, "two\nlines") == _format_obj_line_by_line(mesh, "two\nlines")
+    refined = subdivide(mesh, 1)
+    assert format_obj(refined) == _format_obj_line_by_line(refined)
