@@ -13,7 +13,7 @@ from typing import Any, Literal, Mapping
 
 from patching.errors import OptionError
 
-__all__ = ["BuildOptions", "CHOICES", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS"]
+__all__ = ["BuildOptions", "CHOICES", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS", "EIGEN_ANGLES"]
 
 #: Angle configuration at EPs: [FSLYJ] sec. 3.3's optimised angles (default), its heuristic
 #: default angles, or 2 pi / n (the T-spline baseline of [SSEL13]).
@@ -21,6 +21,10 @@ ANGLES = ("optimized", "default", "uniform")
 #: Placement of the auxiliary control points: [FSLYJ] sec. 3.5's eigen-polyhedron rule
 #: (default), the extraction's own face points, or thin-plate fairing ([FSLYJ] Fig. 16c).
 ANCHORS = ("eigen-polyhedron", "extraction", "faired")
+#: Angles of the eigen-polyhedron that places the anchors' limit point and tangent plane
+#: ([FSLYJ] sec. 3.5): 2 pi / n ([LFS16], default) or [ZTL]'s modified angles (eq. (10)), the
+#: choice ``subdivide --angles`` offers for the subdivision rules.
+EIGEN_ANGLES = ("standard", "modified")
 #: The four inner coefficients of a quintic patch: kept at the degree-elevated extraction
 #: (default), or [FSLYJ] sec. 3.4's cubic iso-curve rule (f_1, f_2).
 INTERIORS = ("extraction", "cubic-isocurves")
@@ -37,6 +41,7 @@ CHOICES: Mapping[str, tuple[str, ...]] = {
     "interior": INTERIORS,
     "g1_solve": G1_SOLVES,
     "refinement": REFINEMENTS,
+    "eigen_angles": EIGEN_ANGLES,
 }
 
 
@@ -49,6 +54,7 @@ class BuildOptions:
     interior: Literal["extraction", "cubic-isocurves"] = "extraction"
     g1_solve: Literal["joint", "seed"] = "joint"
     refinement: Literal["auto", "global"] = "auto"
+    eigen_angles: Literal["standard", "modified"] = "standard"
 
     def __post_init__(self) -> None:
         for name, choices in CHOICES.items():

@@ -68,9 +68,12 @@ from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_
 from patching.surface import CORNER_PARAMETERS
 from patching.topology.tables import Topology
 
-__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
+__all__ = ["Q_WEIGHT", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
 QUINTIC = 5
+#: Weight of the spoke-curve points q_i = P^i[2,0] against the face points f_i = P^i[1,1] in
+#: the red solve's stage 2 (the least change that satisfies G_1; ``_red_operator``).
+Q_WEIGHT = 1.0
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
 
 
@@ -325,7 +328,9 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 
 
 @lru_cache(maxsize=4096)
-def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
+def _red_operator(
+    n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
+) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.
@@ -405,8 +410,10 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
             if not pinned[i] and not skip[i]:
                 target[q(i)] += 0.5 * stage1[s(i)]
                 target[q(i), s(i)] -= 0.5
+        # least change |W^(1/2) dy| (W: 1 on f, q_weight on q) with C (y + dy) = 0
+        inv_w = np.where(y >= q(0), 1.0 / q_weight, 1.0)
         correction = np.zeros((size, size))
-        correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
+        correction[np.ix_(y, np.arange(size))] = -(inv_w[:, None] * cy.T) @ np.linalg.pinv((cy * inv_w) @ cy.T, rcond=1e-12) @ c
         k = (np.eye(size) + correction) @ target
     k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
@@ -484,7 +491,10 @@ class G1Assembly:
             uniq, inverse = _unique_rows(keys)
             skip = tuple(bool(x) for x in g.unconstrained)
             ops = np.array(
-                [_red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip) for row in uniq]
+                [
+                    _red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip, Q_WEIGHT)
+                    for row in uniq
+                ]
             )
             present = g.patches
 

@@ -109,7 +109,7 @@ def assemble(
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
-        anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, rule=rule)
+        anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, angles=options.eigen_angles, rule=rule)
         anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
