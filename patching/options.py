@@ -19,8 +19,9 @@ __all__ = ["BuildOptions", "CHOICES", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLV
 #: default angles, or 2 pi / n (the T-spline baseline of [SSEL13]).
 ANGLES = ("optimized", "default", "uniform")
 #: Placement of the auxiliary control points: [FSLYJ] sec. 3.5's eigen-polyhedron rule
-#: (default), the extraction's own face points, or thin-plate fairing ([FSLYJ] Fig. 16c).
-ANCHORS = ("eigen-polyhedron", "extraction", "faired")
+#: (default), the extraction's own face points, thin-plate fairing ([FSLYJ] Fig. 16c), or
+#: least squares against the non-uniform subdivision's limit surface ([FSLYJ] Fig. 17).
+ANCHORS = ("eigen-polyhedron", "extraction", "faired", "limit-fit")
 #: Angles of the eigen-polyhedron that places the anchors' limit point and tangent plane
 #: ([FSLYJ] sec. 3.5): 2 pi / n ([LFS16], default) or [ZTL]'s modified angles (eq. (10)), the
 #: choice ``subdivide --angles`` offers for the subdivision rules.
@@ -50,7 +51,7 @@ class BuildOptions:
     """What a build may choose; each field one of ``CHOICES[field]`` (OptionError otherwise)."""
 
     angles: Literal["optimized", "default", "uniform"] = "optimized"
-    anchors: Literal["eigen-polyhedron", "extraction", "faired"] = "eigen-polyhedron"
+    anchors: Literal["eigen-polyhedron", "extraction", "faired", "limit-fit"] = "eigen-polyhedron"
     interior: Literal["extraction", "cubic-isocurves"] = "extraction"
     g1_solve: Literal["joint", "seed"] = "joint"
     refinement: Literal["auto", "global"] = "auto"

@@ -105,3 +105,45 @@ def test_cli_eigen_angles(run_cli, tmp_path):
     assert bad.returncode == 2
     assert len(bad.stderr.strip().splitlines()) == 1 and bad.stderr.startswith("nupatch: error:")
     assert not (tmp_path / "bad.step").exists()
+
+
+# --- anchors fitted to the limit surface ([FSLYJ] Fig. 17)
+
+def test_limit_targets_are_the_nurbs_on_regular_faces():
+    """On a regular torus the subdivision limit is the bicubic B-spline: the targets at the
+    level-2 vertices' parameters are the patches' own points there."""
+    from patching.bernstein import evaluate_nets
+    from patching.extraordinary.limit_fit import limit_targets
+    from patching.mesh.primitives import torus_grid
+
+    mesh = torus_grid(6, 5, u_intervals=[1, 2, 3, 1.5, 2.5, 1], v_intervals=[1, 3, 2, 1, 2])
+    nets = {f: net for _, _, f, net in patching.build(mesh).patches()}
+    faces = np.array([0, 7, 13])
+    params, targets = limit_targets(mesh, faces)
+    assert params.shape == (3, 25, 2)
+    points = (targets @ mesh.vertices).reshape(3, 25, 3)
+    for i, f in enumerate(faces.tolist()):
+        expect = evaluate_nets(nets[f][None], params[i, :, 0], params[i, :, 1])[0]
+        assert np.abs(expect - points[i]).max() < 1e-12
+
+
+@pytest.mark.parametrize("n", [3, 5])
+def test_limit_fit_is_closer_to_the_limit_and_g1(n):
+    from patching.bernstein import evaluate_nets
+    from patching.extraordinary.limit_fit import limit_targets
+
+    d = np.random.default_rng(10 + n).uniform(1.0, 5.0, (n, 3))
+    mesh = lifted(ep_disc(n, d), seed=n)
+    ring = np.flatnonzero([0 in mesh.face(f) for f in range(mesh.n_faces)])
+    params, targets = limit_targets(mesh, ring)
+    goal = (targets @ mesh.vertices).reshape(ring.size, -1, 3)
+    misfit = {}
+    for rule in ("eigen-polyhedron", "limit-fit"):
+        surface = patching.build_operator(mesh, anchors=rule).evaluate(mesh.vertices)
+        nets = {f: net for _, _, f, net in surface.patches()}
+        misfit[rule] = np.sqrt(sum(
+            ((evaluate_nets(nets[int(f)][None], params[i, :, 0], params[i, :, 1])[0] - goal[i]) ** 2).sum()
+            for i, f in enumerate(ring.tolist())
+        ))
+        assert shared_edge_normal_jumps(surface)[0] < 1e-7
+    assert misfit["limit-fit"] < misfit["eigen-polyhedron"]
