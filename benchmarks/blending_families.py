@@ -1,6 +1,6 @@
 """The EP's own blending function over four mesh families: the share with a single local
-maximum, by interval ratio, for each anchor rule and before/after the stage-2 weighting of the
-red G1 solve (``patching.extraordinary.g1_patches.Q_WEIGHT``).
+maximum, by interval ratio, for each anchor rule and for the red G1 solve's stage 2 with and
+without the weighting of ``patching.extraordinary.g1_patches.Q_WEIGHT`` (not the default).
 
     .venv/bin/python benchmarks/blending_families.py [--draws 8] [--samples 65] [--seed 0]
                                                      [--ratios 2,5,10,20] [--modes NAME,...]
@@ -67,8 +67,8 @@ from blending_prisms import prism  # noqa: E402
 VISIBLE = 0.01
 #: name -> (BuildOptions fields, stage-2 weight of q in the red solve)
 MODES = {
-    "before": ({}, 1.0),
-    "after": ({}, None),
+    "shipped": ({}, None),
+    "weighted": ({}, 10.0),
     "extraction": ({"anchors": "extraction"}, None),
     "faired": ({"anchors": "faired"}, None),
     "modified": ({"eigen_angles": "modified"}, None),
@@ -160,7 +160,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--ratios", default="2,5,10,20")
     ap.add_argument("--families", default="prism,polycube,disc,offcentre")
-    ap.add_argument("--modes", default="before,after")
+    ap.add_argument("--modes", default="shipped,weighted")
     args = ap.parse_args()
     ratios = [float(r) for r in args.ratios.split(",")]
     families = args.families.split(",")

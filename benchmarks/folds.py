@@ -2,13 +2,13 @@
 with random strip intervals, and where.
 
     .venv/bin/python benchmarks/folds.py [--ratios 5 20] [--seeds 4] [--samples 17] [--g1-solve joint seed]
-                                         [--modes after before extraction faired modified limit-fit]
+                                         [--modes shipped weighted extraction faired modified limit-fit]
 
 For every shape of ../shared/opensubdiv-shapes (tags kept) and every ratio R, ``--seeds``
 draws of strip intervals uniform in [1, R] (``tests.test_g1_patches.with_random_intervals``,
 seeds 0, 1, ...) are built with the default rules (and each ``--g1-solve`` given, and each
 ``--modes`` of ``benchmarks/blending_families.py``: anchor rules, eigen-polyhedron angles, the
-red solve's stage-2 weight before and after), and ``evaluation.normal_turning`` finds the
+red solve's stage-2 weighting), and ``evaluation.normal_turning`` finds the
 patches whose normal turns back inside them (smallest cosine between neighbouring samples < 0).
 Folded patches are split by degree:
 
@@ -49,7 +49,7 @@ def folded_by_degree(surface: patching.BezierSurface, samples: int) -> dict[int,
     return out
 
 
-def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint", mode: str = "after") -> None:
+def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint", mode: str = "shipped") -> None:
     from blending_families import MODES, q_weight
 
     fields, weight = MODES[mode]
@@ -91,7 +91,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--samples", type=int, default=17)
     parser.add_argument("--g1-solve", nargs="+", default=["joint"], choices=patching.G1_SOLVES)
-    parser.add_argument("--modes", nargs="+", default=["after"])
+    parser.add_argument("--modes", nargs="+", default=["shipped"])
     args = parser.parse_args()
     if not shape_files("catmark_"):
         sys.exit("../shared/opensubdiv-shapes is absent")

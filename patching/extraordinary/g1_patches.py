@@ -27,7 +27,7 @@ spoke points and face points (D_{3i} = s_i - P00, D_{3i+1} = f_i - s_i, D_{3i+2}
 subject to G_0 of every spoke.  Deviation, said in the issue note: the paper then takes
 P^i[2,0] from G_1 alone, dividing by 4 b_i; b_i vanishes at valence 4 and for symmetric
 configurations, so here a second stage moves P^i[2,0] *and* P^i[1,1] as little as possible
-(weighted least squares, below) to satisfy G_1, keeping P00 and the spoke points, hence the
+(least squares, equal weights by default; below) to satisfy G_1, keeping P00 and the spoke points, hence the
 tangent plane of section 3.5.  Where b_i = 0 it stays defined.  The differences do not see a
 translation, so P00 is held at its extraction value; the solves use the null space of the
 constraints and pseudo-inverses (G_0 has rank n - 2: the tangent plane), which tolerate the
@@ -45,22 +45,18 @@ the curve bends back smoothly and no patch there folds (min cosine between neigh
 normals 0.996).  At a spoke whose legs stage 1 does not move (uniform valence 4, any
 extraction that is already G1) nothing changes.
 
-Stage-2 weights (ours).  The G_1 residual left by stage 1 is taken up by the least change of
-(f, q) in the metric |df|^2 + Q_WEIGHT |dq|^2.  With equal weights (as before) q_i took most of
-it (its coefficient in G_1 is the largest), and the black step passes dq_i on to P30 as well,
-so the spoke curve P00..P50 dipped below its regular far end and rose again: on refined prism
-caps with random strip intervals the cap EP's blending function got a second maximum (0.3% to
-1% of its peak) in the patches of the valence-3 cap corners two faces away (e.g. the spoke
-curve of the cap EP's function 6.1, 3.1, 0.8, 0.8, 2.3, 1.8 (x 1e-3) against the extraction's
-6.1, 4.6, 3.5, 2.8, 2.3, 1.8).  Found by switching one stage at a time (the G1 steps off, then
-on one by one; the angle modes, the joint solve and the interior rule changed nothing, the
-anchor rules shifted it).  Q_WEIGHT = 10 lets the face points take most of the correction.
-The weight trades one defect for another: the face points sit next to the EP, and with
-Q_WEIGHT = 30 a prism cap EP's function got two maxima beside the EP, 1.8% above its value
-there (the reported shape of the defect); with 1e4 all of it goes onto f and the functions
-ripple at interval ratio 20.  G_1 is satisfied exactly whatever the weight, and
-a spoke whose extraction is already G1 is not moved (the correction is linear in the residual).
-``benchmarks/blending_families.py`` measures it (docs/fidelity.md).
+Stage-2 weights (ours, measured, not used by default).  The G_1 residual left by stage 1 is
+taken up by the least change of (f, q) in the metric |df|^2 + Q_WEIGHT |dq|^2.  With equal
+weights q_i takes most of it (its coefficient in G_1 is the largest), and the black step passes
+dq_i on to P30 as well, so the spoke curve P00..P50 can dip below its regular far end and rise
+again: on refined prism caps with random strip intervals the cap EP's blending function gets a
+second maximum (0.3% to 1% of its peak) in the patches of the valence-3 cap corners two faces
+away (the spoke curve of the cap EP's function 6.1, 3.1, 0.8, 0.8, 2.3, 1.8 (x 1e-3) against
+the extraction's 6.1, 4.6, 3.5, 2.8, 2.3, 1.8).  Found by switching one stage at a time.
+Q_WEIGHT = 10 removes most of those tail maxima (docs/fidelity.md) but folds 72 of the 960
+patches of tests/test_folds.py's EP-rich sphere (the face points take the correction and
+overshoot), and 30 gives a prism cap function two maxima beside the EP; so the default stays 1
+(G_1 is exact for every weight).  ``benchmarks/blending_families.py`` compares them.
 
 Blue coefficients (printed formulas garbled; reconstructed): a quintic that is a
 degree-elevated cubic has q_2 = f_1(q_0, q_1, q_4, q_5) and q_3 = f_2(q_0, q_1, q_4, q_5) with
@@ -90,8 +86,8 @@ __all__ = ["Q_WEIGHT", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G
 QUINTIC = 5
 #: Weight of the spoke-curve points q_i = P^i[2,0] against the face points f_i = P^i[1,1] in
 #: the red solve's stage 2, the least weighted change that satisfies G_1 (``_red_operator``;
-#: module docstring, "stage-2 weights").  1 is the unweighted least change of before.
-Q_WEIGHT = 10.0
+#: module docstring, "stage-2 weights").  1: the unweighted least change (the default).
+Q_WEIGHT = 1.0
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
 
 

@@ -104,6 +104,8 @@ def fitted_anchors(
     first = np.concatenate([[0], np.cumsum((degrees + 1) ** 2)])
     wanted = np.unique(np.concatenate(ring_faces)) if ring_faces else np.zeros(0, np.int64)
     wanted = wanted[row_of_face[wanted] >= 0]
+    if wanted.size == 0:
+        return default.tocsr()
     params, targets = limit_targets(mesh, wanted)
     k = params.shape[1]
     sample_of = {int(f): i for i, f in enumerate(wanted.tolist())}
