@@ -32,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from patching.bernstein import bernstein
+from patching.errors import NupatchError, UnsupportedError
 from patching.mesh.control_mesh import ControlMesh
 from patching.subdivision.catmark import subdivision_operator
 from patching.subdivision.limit import limit_operator
@@ -77,8 +78,13 @@ def limit_targets(mesh: ControlMesh, faces: np.ndarray) -> tuple[np.ndarray, sp.
         total = s if total is None else (s @ total).tocsr()
         level = child
     # Zero-interval strips (clamped rims) give 0/0 in limit masks of vertices no sample uses.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        limit = (limit_operator(level) @ total).tocsr()
+    try:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            limit = (limit_operator(level) @ total).tocsr()
+    except (NupatchError, ValueError) as exc:  # ValueError: limit.py's own message failing (sharp tags)
+        raise UnsupportedError(
+            f"anchors limit-fit: the subdivision limit surface is not available for this mesh ({exc})", mesh.name
+        ) from exc
     ids = np.array([sorted(o) for o in owned], dtype=np.int64)  # (f, k)
     params = np.array([[o[i] for i in row] for o, row in zip(owned, ids.tolist())])
     return params, limit[ids.ravel()]
