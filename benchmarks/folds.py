@@ -2,10 +2,13 @@
 with random strip intervals, and where.
 
     .venv/bin/python benchmarks/folds.py [--ratios 5 20] [--seeds 4] [--samples 17] [--g1-solve joint seed]
+                                         [--modes shipped weighted extraction faired modified limit-fit]
 
 For every shape of ../shared/opensubdiv-shapes (tags kept) and every ratio R, ``--seeds``
 draws of strip intervals uniform in [1, R] (``tests.test_g1_patches.with_random_intervals``,
-seeds 0, 1, ...) are built with the default rules (and each ``--g1-solve`` given), and ``evaluation.normal_turning`` finds the
+seeds 0, 1, ...) are built with the default rules (and each ``--g1-solve`` given, and each
+``--modes`` of ``benchmarks/blending_families.py``: anchor rules, eigen-polyhedron angles, the
+red solve's stage-2 weighting), and ``evaluation.normal_turning`` finds the
 patches whose normal turns back inside them (smallest cosine between neighbouring samples < 0).
 Folded patches are split by degree:
 
@@ -46,7 +49,10 @@ def folded_by_degree(surface: patching.BezierSurface, samples: int) -> dict[int,
     return out
 
 
-def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint") -> None:
+def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint", mode: str = "shipped") -> None:
+    from blending_families import MODES, q_weight
+
+    fields, weight = MODES[mode]
     builds = refused = folding = 0
     patches = {3: 0, 5: 0}
     folded = {3: 0, 5: 0}
@@ -56,7 +62,8 @@ def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint") -> N
         for seed in range(seeds):
             try:
                 mesh = with_random_intervals(patching.read_mesh(path), ratio, seed=seed)
-                surface = patching.build(mesh, g1_solve=g1_solve)
+                with q_weight(weight):
+                    surface = patching.build(mesh, g1_solve=g1_solve, **fields)
             except NupatchError:
                 refused += 1
                 row.append("refused")
@@ -72,7 +79,7 @@ def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint") -> N
         if any(r not in ("refused", "0+0") for r in row):
             print(f"  {path.stem:32s} folded bicubic+quintic per seed: {', '.join(row)}")
     print(
-        f"{g1_solve}, ratio {ratio:g}: {builds} builds ({refused} refused), {folding} with a fold; folded patches: "
+        f"{g1_solve}, {mode}, ratio {ratio:g}: {builds} builds ({refused} refused), {folding} with a fold; folded patches: "
         f"bicubic {folded[3]} of {patches[3]}, bi-quintic {folded[5]} of {patches[5]} "
         f"({time.perf_counter() - start:.0f} s)"
     )
@@ -84,13 +91,16 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--samples", type=int, default=17)
     parser.add_argument("--g1-solve", nargs="+", default=["joint"], choices=patching.G1_SOLVES)
+    parser.add_argument("--modes", nargs="+", default=["shipped"])
     args = parser.parse_args()
     if not shape_files("catmark_"):
         sys.exit("../shared/opensubdiv-shapes is absent")
     warnings.simplefilter("ignore")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
     for g1_solve in args.g1_solve:
         for ratio in args.ratios:
-            census(ratio, args.seeds, args.samples, g1_solve)
+            for mode in args.modes:
+                census(ratio, args.seeds, args.samples, g1_solve, mode)
 
 
 if __name__ == "__main__":

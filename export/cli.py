@@ -125,7 +125,8 @@ def _jobs(args: argparse.Namespace) -> list:
 
 def _options(args: argparse.Namespace) -> BuildOptions:
     """The BuildOptions of ``build`` / ``render``'s flags (validated once, there)."""
-    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve, method=args.method)
+    return BuildOptions(angles=args.angles, anchors=args.anchors, g1_solve=args.g1_solve, method=args.method,
+                        eigen_angles=args.eigen_angles)
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -328,6 +329,11 @@ def _add_build_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--anchors", choices=CHOICES["anchors"], default=defaults.anchors,
         help=f"rule for the auxiliary anchors at extraordinary points (default: {defaults.anchors})",
+    )
+    p.add_argument(
+        "--eigen-angles", choices=CHOICES["eigen_angles"], default=defaults.eigen_angles,
+        help="angles of the eigen-polyhedron that gives the anchors' limit point and tangent plane: "
+        "standard (2 pi / n, default) or modified ([ZTL])",
     )
     p.add_argument(
         "--g1-solve", choices=CHOICES["g1_solve"], default=defaults.g1_solve,

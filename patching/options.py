@@ -13,7 +13,7 @@ from typing import Any, Literal, Mapping
 
 from patching.errors import OptionError
 
-__all__ = ["BuildOptions", "CHOICES", "METHODS", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS"]
+__all__ = ["BuildOptions", "CHOICES", "METHODS", "ANGLES", "ANCHORS", "INTERIORS", "G1_SOLVES", "REFINEMENTS", "EIGEN_ANGLES"]
 
 #: The construction at EPs: [FSLYJ]'s (default), or the T-spline baseline of [SSEL13] (its
 #: [32]: the extraction's own face points, no auxiliary anchors; uniform angles; the G1
@@ -25,8 +25,13 @@ METHODS = ("fslyj", "t-spline")
 #: default angles, or 2 pi / n (the T-spline baseline of [SSEL13]).
 ANGLES = ("optimized", "default", "uniform")
 #: Placement of the auxiliary control points: [FSLYJ] sec. 3.5's eigen-polyhedron rule
-#: (default), the extraction's own face points, or thin-plate fairing ([FSLYJ] Fig. 16c).
-ANCHORS = ("eigen-polyhedron", "extraction", "faired")
+#: (default), the extraction's own face points, thin-plate fairing ([FSLYJ] Fig. 16c), or
+#: least squares against the non-uniform subdivision's limit surface ([FSLYJ] Fig. 17).
+ANCHORS = ("eigen-polyhedron", "extraction", "faired", "limit-fit")
+#: Angles of the eigen-polyhedron that places the anchors' limit point and tangent plane
+#: ([FSLYJ] sec. 3.5): 2 pi / n ([LFS16], default) or [ZTL]'s modified angles (eq. (10)), the
+#: choice ``subdivide --angles`` offers for the subdivision rules.
+EIGEN_ANGLES = ("standard", "modified")
 #: The four inner coefficients of a quintic patch: kept at the degree-elevated extraction
 #: (default), or [FSLYJ] sec. 3.4's cubic iso-curve rule (f_1, f_2).
 INTERIORS = ("extraction", "cubic-isocurves")
@@ -44,6 +49,7 @@ CHOICES: Mapping[str, tuple[str, ...]] = {
     "interior": INTERIORS,
     "g1_solve": G1_SOLVES,
     "refinement": REFINEMENTS,
+    "eigen_angles": EIGEN_ANGLES,
 }
 
 
@@ -52,11 +58,12 @@ class BuildOptions:
     """What a build may choose; each field one of ``CHOICES[field]`` (OptionError otherwise)."""
 
     angles: Literal["optimized", "default", "uniform"] = "optimized"
-    anchors: Literal["eigen-polyhedron", "extraction", "faired"] = "eigen-polyhedron"
+    anchors: Literal["eigen-polyhedron", "extraction", "faired", "limit-fit"] = "eigen-polyhedron"
     interior: Literal["extraction", "cubic-isocurves"] = "extraction"
     g1_solve: Literal["joint", "seed"] = "joint"
     refinement: Literal["auto", "global"] = "auto"
     method: Literal["fslyj", "t-spline"] = "fslyj"
+    eigen_angles: Literal["standard", "modified"] = "standard"
 
     def __post_init__(self) -> None:
         for name, choices in CHOICES.items():
@@ -64,7 +71,7 @@ class BuildOptions:
             if not isinstance(value, str) or value not in choices:
                 raise OptionError(f"{name} must be one of {', '.join(choices)}, not {value!r}", name)
         if self.method == "t-spline":
-            fixed = {"angles": ("optimized", "uniform"), "anchors": ("eigen-polyhedron",), "g1_solve": ("joint",)}
+            fixed = {"angles": ("optimized", "uniform"), "anchors": ("eigen-polyhedron",), "g1_solve": ("joint",), "eigen_angles": ("standard",)}
             for name, allowed in fixed.items():
                 if getattr(self, name) not in allowed:
                     raise OptionError(

@@ -27,7 +27,7 @@ spoke points and face points (D_{3i} = s_i - P00, D_{3i+1} = f_i - s_i, D_{3i+2}
 subject to G_0 of every spoke.  Deviation, said in the issue note: the paper then takes
 P^i[2,0] from G_1 alone, dividing by 4 b_i; b_i vanishes at valence 4 and for symmetric
 configurations, so here a second stage moves P^i[2,0] *and* P^i[1,1] as little as possible
-(least squares, equal weights) to satisfy G_1, keeping P00 and the spoke points, hence the
+(least squares, equal weights by default; below) to satisfy G_1, keeping P00 and the spoke points, hence the
 tangent plane of section 3.5.  Where b_i = 0 it stays defined.  The differences do not see a
 translation, so P00 is held at its extraction value; the solves use the null space of the
 constraints and pseudo-inverses (G_0 has rank n - 2: the tangent plane), which tolerate the
@@ -44,6 +44,19 @@ q_i is therefore q_hat_i + (s_i - s_hat_i) / 2, the value that leaves P30 at the
 the curve bends back smoothly and no patch there folds (min cosine between neighbouring
 normals 0.996).  At a spoke whose legs stage 1 does not move (uniform valence 4, any
 extraction that is already G1) nothing changes.
+
+Stage-2 weights (ours, measured, not used by default).  The G_1 residual left by stage 1 is
+taken up by the least change of (f, q) in the metric |df|^2 + Q_WEIGHT |dq|^2.  With equal
+weights q_i takes most of it (its coefficient in G_1 is the largest), and the black step passes
+dq_i on to P30 as well, so the spoke curve P00..P50 can dip below its regular far end and rise
+again: on refined prism caps with random strip intervals the cap EP's blending function gets a
+second maximum (0.3% to 1% of its peak) in the patches of the valence-3 cap corners two faces
+away (the spoke curve of the cap EP's function 6.1, 3.1, 0.8, 0.8, 2.3, 1.8 (x 1e-3) against
+the extraction's 6.1, 4.6, 3.5, 2.8, 2.3, 1.8).  Found by switching one stage at a time.
+Q_WEIGHT = 10 removes most of those tail maxima (docs/fidelity.md) but folds 72 of the 960
+patches of tests/test_folds.py's EP-rich sphere (the face points take the correction and
+overshoot), and 30 gives a prism cap function two maxima beside the EP; so the default stays 1
+(G_1 is exact for every weight).  ``benchmarks/blending_families.py`` compares them.
 
 Blue coefficients (printed formulas garbled; reconstructed): a quintic that is a
 degree-elevated cubic has q_2 = f_1(q_0, q_1, q_4, q_5) and q_3 = f_2(q_0, q_1, q_4, q_5) with
@@ -69,9 +82,13 @@ from patching.surface import CORNER_PARAMETERS
 from patching.topology.tables import Topology
 from patching.util.solve_cache import lookup
 
-__all__ = ["EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
+__all__ = ["Q_WEIGHT", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
 QUINTIC = 5
+#: Weight of the spoke-curve points q_i = P^i[2,0] against the face points f_i = P^i[1,1] in
+#: the red solve's stage 2, the least weighted change that satisfies G_1 (``_red_operator``;
+#: module docstring, "stage-2 weights").  1: the unweighted least change (the default).
+Q_WEIGHT = 1.0
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
 
 
@@ -326,7 +343,9 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
 
 
 @lru_cache(maxsize=4096)
-def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
+def _red_operator(
+    n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
+) -> np.ndarray:
     """``_red_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one is
     installed; an entry is trusted if it is (1 + 3n) x (1 + 3n) with rows summing to 1)."""
     size = 1 + 3 * n
@@ -335,12 +354,15 @@ def _red_operator(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: t
         (k,) = arrays
         return k.shape == (size, size) and bool(np.all(np.abs(k.sum(axis=1) - 1.0) <= 1e-9))
 
-    (k,) = lookup("red_operator", (n, key, pinned, gap, skip), 1, lambda: [_red_solve(n, key, pinned, gap, skip)], valid)
+    args = (n, key, pinned, gap, skip, q_weight)
+    (k,) = lookup("red_operator", args, 1, lambda: [_red_solve(*args)], valid)
     k.setflags(write=False)
     return k
 
 
-def _red_solve(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = ()) -> np.ndarray:
+def _red_solve(
+    n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
+) -> np.ndarray:
     """K with x = K x_hat for x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}].
 
     key = (alpha_a, alpha_b, b0, b1) per spoke, hashable; b1 None for a regular far end.
@@ -420,8 +442,10 @@ def _red_solve(n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tupl
             if not pinned[i] and not skip[i]:
                 target[q(i)] += 0.5 * stage1[s(i)]
                 target[q(i), s(i)] -= 0.5
+        # least change |W^(1/2) dy| (W: 1 on f, q_weight on q) with C (y + dy) = 0
+        inv_w = np.where(y >= q(0), 1.0 / q_weight, 1.0)
         correction = np.zeros((size, size))
-        correction[np.ix_(y, np.arange(size))] = -cy.T @ np.linalg.pinv(cy @ cy.T, rcond=1e-12) @ c
+        correction[np.ix_(y, np.arange(size))] = -(inv_w[:, None] * cy.T) @ np.linalg.pinv((cy * inv_w) @ cy.T, rcond=1e-12) @ c
         k = (np.eye(size) + correction) @ target
     k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
@@ -499,7 +523,10 @@ class G1Assembly:
             uniq, inverse = _unique_rows(keys)
             skip = tuple(bool(x) for x in g.unconstrained)
             ops = np.array(
-                [_red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip) for row in uniq]
+                [
+                    _red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip, Q_WEIGHT)
+                    for row in uniq
+                ]
             )
             present = g.patches
 

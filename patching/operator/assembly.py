@@ -30,6 +30,7 @@ from patching.extraordinary.g1_patches import G1Assembly, RowMixer, ep_groups
 from patching.extraordinary.t_spline import ANCHOR_RULE as T_SPLINE_ANCHORS
 from patching.extraordinary.t_spline import ANGLES as T_SPLINE_ANGLES
 from patching.extraordinary.t_spline import t_spline_clusters
+from patching.extraordinary.limit_fit import fitted_anchors
 from patching.mesh.control_mesh import ControlMesh
 from patching.options import BuildOptions
 from patching.surface import OperatorGroup, SurfaceOperator
@@ -115,9 +116,9 @@ def assemble(
             steps_composed = step if steps_composed is None else product(step, steps_composed)
         mixing = product(steps_composed, mixing)
         groups.append(OperatorGroup(5, quintic_faces, n_cubic_rows))
-        rule = T_SPLINE_ANCHORS if t_spline else "eigen-polyhedron" if anchors == "faired" else anchors
+        rule = T_SPLINE_ANCHORS if t_spline else "eigen-polyhedron" if anchors in ("faired", "limit-fit") else anchors
         smooth_groups = [g for g in groups_ep if g.theta is None]
-        anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, rule=rule)
+        anchor_rows = anchor_matrix(topo, smooth_groups, extraction.anchor_column, n, angles=options.eigen_angles, rule=rule)
         anchor_rows = anchor_rows + _sector_anchors(topo, feats, groups_ep, extraction.anchor_column, n)
     else:
         anchor_rows = sp.csr_matrix((n_anchor, n))
@@ -125,14 +126,18 @@ def assemble(
         mixing = mixing[: n_rows - 36 * patchless.size]
     # Anchors folded in by one product with [I; anchors] (cheaper than slicing the columns
     # apart and adding two long matrices); each row block goes through both products at once.
-    if anchors != "faired" or not n_anchor:
+    if anchors not in ("faired", "limit-fit") or not n_anchor:
         matrix = product(mixing, extraction.nets, _with_anchors(anchor_rows), prune=True)
     else:
         stacked = product(mixing, extraction.nets).tocsr()  # rows over [control points | anchors]
         degrees = np.concatenate([np.full(len(g.faces), g.degree) for g in groups])
         patch_faces = np.concatenate([g.faces for g in groups])
         sets = [extraction.anchor_column[g.h[e]] - n for g in smooth_groups for e in range(len(g.vertices))]
-        anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
+        if anchors == "faired":
+            anchor_rows = faired_anchors(stacked, n, anchor_rows, sets, degrees, spans[patch_faces])
+        else:
+            rings = [g.faces[e] for g in smooth_groups for e in range(len(g.vertices))]
+            anchor_rows = fitted_anchors(mesh, stacked, n, anchor_rows, sets, rings, patch_faces, degrees)
         matrix = product(stacked, _with_anchors(anchor_rows), prune=True)
     ordered = np.concatenate([g.faces for g in groups])
     ptopo = patch_topology(topo, ordered, spans)

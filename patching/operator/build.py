@@ -33,6 +33,7 @@ def build_operator(
     g1_solve: str | None = None,
     refinement: str | None = None,
     method: str | None = None,
+    eigen_angles: str | None = None,
 ) -> SurfaceOperator:
     """M for a polygon mesh with knot intervals and tags: coefficients = M @ control points.
 
@@ -40,8 +41,9 @@ def build_operator(
     points ([FSLYJ] sec. 3), sharp features as in [FSLYJ] sec. 4.2.  Semi-sharp tags and
     non-quad faces are refined first (``refinement``), globally or adaptively, and M includes
     those steps.  ``options`` (``BuildOptions``) or its fields as keywords choose the angle
-    configuration, anchors, interior rule, G1 solve, refinement and method (``"t-spline"``: the
-    [SSEL13] baseline, ``extraordinary.t_spline``); ``topology``: the mesh's
+    configuration, anchors (and the eigen-polyhedron angles that place them), interior rule, G1
+    solve, refinement and method (``"t-spline"``: the [SSEL13] baseline,
+    ``extraordinary.t_spline``); ``topology``: the mesh's
     Topology if already built; ``force_extraordinary``: interior vertices patched as EPs
     whatever their valence.  OptionError for an unknown option value.
     """
@@ -49,7 +51,10 @@ def build_operator(
         raise MeshError(f"mesh must be a ControlMesh (read_mesh or from_arrays), not {type(mesh).__name__}", "mesh")
     if topology is not None and not isinstance(topology, Topology):
         raise MeshError(f"topology must be a Topology of the mesh, not {type(topology).__name__}", "topology")
-    options = BuildOptions.of(options, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement, method=method)
+    options = BuildOptions.of(
+        options, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement,
+        method=method, eigen_angles=eigen_angles,
+    )
     topo = topology or Topology(mesh)
     # Tears are judged on the user's mesh, before any refinement: refining a zero strip
     # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
