@@ -18,16 +18,19 @@ import argparse
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 import patching
 from patching.errors import NupatchError
-from patching.shading import SubdividedMesh, shading_operator
 
 from .atomic import atomic_output, check_output_path
 from .render import Sampled, render
 from .subdivided import split_by_normal
+
+if TYPE_CHECKING:
+    from patching.shading import SubdividedMesh
 
 __all__ = ["NORMALS", "render_subdivided", "run_render_subdivided", "subdivided_sampled"]
 
@@ -41,6 +44,8 @@ def _flat(result: SubdividedMesh) -> SubdividedMesh:
     p = result.points[f]
     n = np.cross(p, np.roll(p, -1, axis=1)).sum(axis=1)
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    from patching.shading import SubdividedMesh
+
     return SubdividedMesh(result.points, f, np.repeat(np.arange(f.shape[0])[:, None], f.shape[1], axis=1), n)
 
 
@@ -50,6 +55,8 @@ def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "l
     docstring); curvatures are zero (not drawn), the overlay lines are the control mesh's edges."""
     if normals not in NORMALS:
         raise NupatchError(f"--normals must be one of {', '.join(NORMALS)} to render, got '{normals}'", "--normals")
+    from patching.shading import shading_operator  # not at import: the render parser is built on every start
+
     op = shading_operator(mesh, levels, scheme, "limit" if normals == "flat" else normals, variant,
                           rules=rules, crease_method=crease_method)
     result = op.evaluate(mesh.vertices)
