@@ -272,6 +272,7 @@ def test_many_meshes_need_an_output_directory_and_distinct_names(tmp_path, cli_m
     assert (tmp_path / "a.step").exists() and (tmp_path / "sub" / "a.step").exists()
 
 
+@pytest.mark.slow
 def test_progress_on_stderr_for_long_builds_and_q_silences_it(tmp_path):
     import os
     import subprocess
@@ -377,6 +378,7 @@ def test_flat_closed_mesh_is_written_as_a_shell_with_a_warning(tmp_path, run_cli
     assert report.valid and report.n_solids == 0 and report.n_shells == 1
 
 
+@pytest.mark.slow
 def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, cli_main):
     """`nupatch check big.step --all | head -1`: no 'internal error' when the pipe closes."""
     import subprocess

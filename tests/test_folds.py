@@ -98,6 +98,7 @@ def test_fairing_never_raises_the_thin_plate_energy_of_the_defaults():
         assert faired <= default * (1 + 1e-12)
 
 
+@pytest.mark.slow
 def test_ep_quality_reports_folds():
     """``ep_quality``'s ``fold``: the smallest normal cosine on an EP's patches; the cube's EPs
     are clean, and where the seed's per-EP steps fold catmark_lefthanded (which the default
