@@ -44,6 +44,39 @@ def run_cli():
     return run
 
 
+@pytest.fixture
+def cli_main():
+    """Run ``nupatch ARGS`` in this interpreter (``export.cli.main``), returning the same
+    CompletedProcess (text) as ``run_cli``: stdout and stderr captured, argparse's SystemExit
+    turned into the return code, the signal handlers ``main`` installs put back afterwards.
+
+    For tests of what a command computes or writes; tests of the process itself (exit status
+    of the interpreter, signals, stdin/stdout streams, import behaviour, progress on a real
+    stderr) keep ``run_cli``.  Saves an interpreter start and the OCC import per call."""
+    import contextlib
+    import io
+    import signal
+
+    from export import cli
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        argv = list(map(str, args))
+        out, err = io.StringIO(), io.StringIO()
+        saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)}
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                try:
+                    code = cli.main(argv)
+                except SystemExit as exc:  # argparse: --help, --version, usage errors
+                    code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+        finally:
+            for s, handler in saved.items():
+                signal.signal(s, handler)
+        return subprocess.CompletedProcess([*NUPATCH, *argv], code, out.getvalue(), err.getvalue())
+
+    return run
+
+
 # CI runs the property tests derandomized: the same examples every run, so a submission's
 # verdict does not depend on which random examples a fresh machine draws.  Local runs keep
 # exploring new examples (and remember failures in .hypothesis/).

@@ -144,15 +144,17 @@ def test_isolated_vertex_and_unknown_tag_warn_and_go_on(tmp_path, run_cli):
     assert out.exists()
 
 
-def test_build_info_check_and_version(tmp_path, run_cli):
+def test_build_info_check_and_version(tmp_path, run_cli, cli_main):
+    """What build, check and info compute, in this interpreter (``cli_main``); --version in a
+    fresh one, so the ``python -m export.cli`` entry point itself is run here too."""
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(6, 5, extra="t interval 2/1/0 0 5 3\n"))
-    result = run_cli("build", mesh)
+    result = cli_main("build", mesh)
     assert result.returncode == 0, result.stderr
     step = tmp_path / "ring.step"
     text = step.read_text()
     assert "ring" in text and "MILLI" in text
-    check = run_cli("check", step, "--json")
+    check = cli_main("check", step, "--json")
     assert check.returncode == 0, check.stderr
     import json
 
@@ -160,18 +162,20 @@ def test_build_info_check_and_version(tmp_path, run_cli):
     assert report["valid"] and report["n_solids"] == 1 and report["n_free_edges"] == 0
     # round-off level, read back from the STEP (13 significant digits)
     assert report["max_gap_relative"] <= 1e-9 and report["max_normal_jump_deg"] <= 1e-6
-    info = run_cli("info", mesh)
+    info = cli_main("info", mesh)
     assert info.returncode == 0 and "30 vertices, 30 faces" in info.stdout
     assert run_cli("--version").stdout.startswith("nupatch ")
     for command in ("build", "info", "check"):
-        assert run_cli(command, "--help").returncode == 0
+        assert cli_main(command, "--help").returncode == 0
 
 
-def test_building_twice_gives_the_same_step_but_the_timestamp(tmp_path, run_cli):
+def test_building_twice_gives_the_same_step_but_the_timestamp(tmp_path, run_cli, cli_main):
+    """One build in this interpreter, one in a fresh one: still two interpreters (different
+    hash seeds), so an order that depends on set or dict hashing would still show."""
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(5, 4))
     a, b = tmp_path / "a.step", tmp_path / "b.step"
-    assert run_cli("build", mesh, "-o", a, "-q").returncode == 0
+    assert cli_main("build", mesh, "-o", a, "-q").returncode == 0
     assert run_cli("build", mesh, "-o", b, "-q").returncode == 0
     strip = lambda p: [l for l in p.read_text().splitlines() if not l.startswith("FILE_NAME")]  # noqa: E731
     assert strip(a) == strip(b)
@@ -215,7 +219,7 @@ def test_bad_output_options_are_refused_in_one_line(tmp_path, run_cli, args, fra
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ring.obj"]
 
 
-def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
+def test_angles_and_anchors_change_the_output(tmp_path, cli_main):
     from export import write_obj
     from tests.helpers import ell_mesh
 
@@ -225,7 +229,7 @@ def test_angles_and_anchors_change_the_output(tmp_path, run_cli):
     choices = (("--angles", "uniform"), ("--anchors", "extraction"), ("--anchors", "faired"))
     for options in ((), ("--angles", "optimized", "--anchors", "eigen-polyhedron")) + choices:
         out = tmp_path / f"ell{len(outputs)}.brep"  # BREP: no time stamp, so equal builds give equal files
-        result = run_cli("build", mesh, "-o", out, "-q", *options)
+        result = cli_main("build", mesh, "-o", out, "-q", *options)
         assert result.returncode == 0, result.stderr
         outputs[options] = out.read_bytes()
     defaults, explicit, *others = outputs.values()
@@ -254,20 +258,21 @@ def test_many_meshes_in_parallel_each_failure_on_its_own_line(tmp_path, run_cli)
     assert sorted(p.name for p in out.iterdir()) == ["ring0.stl", "ring1.stl", "ring2.stl"]
 
 
-def test_many_meshes_need_an_output_directory_and_distinct_names(tmp_path, run_cli):
+def test_many_meshes_need_an_output_directory_and_distinct_names(tmp_path, cli_main):
     a, b = tmp_path / "a.obj", tmp_path / "sub" / "a.obj"
     b.parent.mkdir()
     for path in (a, b):
         path.write_text(torus_obj())
-    _assert_refused(run_cli("build", a, b, "-o", tmp_path / "nowhere"), "existing directory", "nowhere")
-    _assert_refused(run_cli("build", a, b, "-o", tmp_path), "would both be written", "command line")
-    _assert_refused(run_cli("build", a, "-j", "0"), "-j must be at least 1", "command line")
+    _assert_refused(cli_main("build", a, b, "-o", tmp_path / "nowhere"), "existing directory", "nowhere")
+    _assert_refused(cli_main("build", a, b, "-o", tmp_path), "would both be written", "command line")
+    _assert_refused(cli_main("build", a, "-j", "0"), "-j must be at least 1", "command line")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.obj", "sub"]
-    result = run_cli("build", a, b, "-q")  # beside each mesh
+    result = cli_main("build", a, b, "-q")  # beside each mesh
     assert result.returncode == 0 and result.stderr == "", result.stderr
     assert (tmp_path / "a.step").exists() and (tmp_path / "sub" / "a.step").exists()
 
 
+@pytest.mark.slow
 def test_progress_on_stderr_for_long_builds_and_q_silences_it(tmp_path):
     import os
     import subprocess
@@ -373,7 +378,8 @@ def test_flat_closed_mesh_is_written_as_a_shell_with_a_warning(tmp_path, run_cli
     assert report.valid and report.n_solids == 0 and report.n_shells == 1
 
 
-def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):
+@pytest.mark.slow
+def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, cli_main):
     """`nupatch check big.step --all | head -1`: no 'internal error' when the pipe closes."""
     import subprocess
 
@@ -381,7 +387,7 @@ def test_a_reader_that_goes_away_stops_the_output_quietly(tmp_path, run_cli):
 
     mesh = tmp_path / "big.obj"
     mesh.write_text(torus_obj(40, 40))
-    assert run_cli("build", mesh, "-q").returncode == 0
+    assert cli_main("build", mesh, "-q").returncode == 0  # only the input; the pipe is a real process
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen([*NUPATCH, "check", str(tmp_path / "big.step"), "--all"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, cwd=REPO, env=env)
@@ -407,20 +413,20 @@ def test_info_reports_what_the_sharp_features_become(run_cli):
     assert info["sharp_features"] == {"corners": 10, "darts": 10, "sector_vertices": 15}
 
 
-def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, run_cli):
+def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, cli_main):
     """--pack reads the knot spans of the faces the patches cover: after the global steps of a
     semi-sharp mesh those of the refined mesh (patching.operator.patched_mesh); an adaptively
     refined surface (T-junctions) is refused in one line and nothing is written."""
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 2\n"))
     out = tmp_path / "ring.step"
-    result = run_cli("build", mesh, "-o", out, "--pack", "-q")
+    result = cli_main("build", mesh, "-o", out, "--pack", "-q")
     assert result.returncode == 0, result.stderr
     assert out.exists()
     deep = tmp_path / "deep.obj"
     deep.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 7\n"))  # 7 steps: adaptive
     refused = tmp_path / "deep.step"
-    _assert_refused(run_cli("build", deep, "-o", refused, "--pack"), "--pack needs one edge per patch side")
+    _assert_refused(cli_main("build", deep, "-o", refused, "--pack"), "--pack needs one edge per patch side")
     assert not refused.exists()
 
 

@@ -92,13 +92,15 @@ def test_sharp_edges_are_reported_apart():
     assert check_continuity(to_shape(cube()), sharp_angle_deg=91.0).n_g0_edges == 12
 
 
-def test_check_cli_prints_the_table_and_require_g1_fails_a_broken_file(tmp_path, run_cli):
+def test_check_cli_prints_the_table_and_require_g1_fails_a_broken_file(tmp_path, run_cli, cli_main):
+    """The table and the JSON through ``export.cli.main`` in this interpreter (``cli_main``);
+    the failing --require-g1 in a fresh one, its exit status 1 being the process's."""
     surface = ring()
     good = write_step(to_shape(surface), tmp_path / "good.step", "good")
     face = 20
     surface.groups[0].coefficients[row_of(surface, face)][1:-1, 1] += [0.0, 0.0, 0.05]
     bad = write_step(to_shape(surface), tmp_path / "bad.step", "bad")
-    result = run_cli("check", good, "--require-g1")
+    result = cli_main("check", good, "--require-g1")
     assert result.returncode == 0, result.stderr
     assert "96 G1" in result.stdout and "0 G0 only" in result.stdout
     result = run_cli("check", bad, "--require-g1", "--worst", "1")
@@ -108,9 +110,9 @@ def test_check_cli_prints_the_table_and_require_g1_fails_a_broken_file(tmp_path,
     rows = [l.split() for l in result.stdout.splitlines() if l.startswith("  ")]
     assert [r[2] for r in rows] == ["G0", "G1"], result.stdout  # worst by jump, then by gap
     assert rows[0][1].replace(",", " ").split() == [str(f) for f in pair], result.stdout
-    data = json.loads(run_cli("check", bad, "--json", "--all").stdout)
+    data = json.loads(cli_main("check", bad, "--json", "--all").stdout)
     assert data["n_g0_edges"] == 3 and len(data["edges"]) == 96
-    result = run_cli("check", good, "--samples", "1")
+    result = cli_main("check", good, "--samples", "1")
     assert result.returncode == 2 and result.stderr.startswith("nupatch: error: ")
 
 

@@ -18,7 +18,7 @@ from patching.mesh.primitives import torus_grid
 from patching.subdivision import limit_points, subdivide
 from tests.edge_checks import edge_jumps
 from tests.helpers import shared_edge_normal_jumps
-from tests.helpers import distance_to_surface
+from tests.helpers import distances_to_surface
 
 M, N, ROW = 8, 6, 2
 
@@ -40,7 +40,7 @@ def test_uniform_crease_is_catmull_clarks_crease_limit_surface():
     mesh = creased_torus()
     surface = patching.build(mesh)
     refined = subdivide(mesh, 3, rules="opensubdiv")
-    worst = max(distance_to_surface(surface, q) for q in limit_points(refined))
+    worst = distances_to_surface(surface, limit_points(refined)).max()
     # Gauss-Newton converges to round-off on these bicubic patches.
     assert worst <= 1e-12 * surface.size
 

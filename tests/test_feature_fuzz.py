@@ -10,6 +10,7 @@ to EPs, now built with ``g1_patches.FOUR_FAN``) was found."""
 import warnings
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -49,6 +50,7 @@ def tagged_meshes(draw):
     return points, faces, creases, corners, mode, ratio, int(rng.integers(1000))
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
 @given(tagged_meshes())
 def test_random_sharp_features_build_g1_or_are_refused_in_one_line(case):

@@ -98,6 +98,7 @@ def test_fairing_never_raises_the_thin_plate_energy_of_the_defaults():
         assert faired <= default * (1 + 1e-12)
 
 
+@pytest.mark.slow
 def test_ep_quality_reports_folds():
     """``ep_quality``'s ``fold``: the smallest normal cosine on an EP's patches; the cube's EPs
     are clean, and where the seed's per-EP steps fold catmark_lefthanded (which the default
@@ -146,14 +147,14 @@ def test_spoke_curves_do_not_fold_where_intervals_run_against_the_net(seed):
     assert turning.min() > TURNING
 
 
-def test_nupatch_build_warns_of_folds_and_still_writes(run_cli, tmp_path):
+def test_nupatch_build_warns_of_folds_and_still_writes(cli_main, tmp_path):
     """`nupatch build` names folds in one warning line (evaluation.normal_turning on 9 x 9
     samples) and writes the file; a clean surface gets no such line.  The folded case is
     catmark_lefthanded under the seed's per-EP steps (`--g1-solve seed`); the default joint
     solve does not fold it."""
     clean = tmp_path / "cube.obj"
     write_obj(with_random_intervals(CUBE, 5.0, seed=0), clean)
-    done = run_cli("build", clean, "-o", tmp_path / "cube.step", "-q")
+    done = cli_main("build", clean, "-o", tmp_path / "cube.step", "-q")
     assert done.returncode == 0 and "fold" not in done.stderr
     from tests.conftest import shape_files
 
@@ -162,7 +163,7 @@ def test_nupatch_build_warns_of_folds_and_still_writes(run_cli, tmp_path):
         pytest.skip("../shared/opensubdiv-shapes is absent")
     folded = tmp_path / "lefthanded.obj"
     write_obj(with_random_intervals(patching.read_mesh(shapes[0]), 5.0, seed=len(shapes[0].stem)), folded)
-    done = run_cli("build", folded, "-o", tmp_path / "lefthanded.step", "-q", "--g1-solve", "seed")
+    done = cli_main("build", folded, "-o", tmp_path / "lefthanded.step", "-q", "--g1-solve", "seed")
     assert done.returncode == 0 and (tmp_path / "lefthanded.step").stat().st_size > 0
     lines = [line for line in done.stderr.splitlines() if "fold over themselves" in line]
     assert len(lines) == 1 and lines[0].startswith("nupatch: warning: ")

@@ -186,6 +186,7 @@ def test_python_m_export_and_models(tmp_path):
     assert result.returncode == 2 and "clamped_grid" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_stdin_to_stdout_equals_the_file_build(tmp_path):
     src = REPO / "models" / "clamped_grid.obj"
     result = run(["-m", "export", "build", "-", "-o", "-", "--format", "obj", "-q"], input=src.read_bytes())

@@ -110,11 +110,13 @@ def test_full_rings_are_not_closed_on_themselves():
     assert (report.packed_faces, report.packed_patches, report.faces) == (3, 95, 4)
 
 
-def test_cli_pack_writes_fewer_faces_with_the_same_box(tmp_path, run_cli):
-    mesh = "models/torus_nonuniform.obj"
+def test_cli_pack_writes_fewer_faces_with_the_same_box(tmp_path, cli_main):
+    from tests.conftest import REPO
+
+    mesh = REPO / "models" / "torus_nonuniform.obj"
     plain, packed = tmp_path / "plain.step", tmp_path / "packed.step"
-    assert run_cli("build", mesh, "-o", plain, "-q").returncode == 0
-    result = run_cli("build", mesh, "-o", packed, "-q", "--pack")
+    assert cli_main("build", mesh, "-o", plain, "-q").returncode == 0
+    result = cli_main("build", mesh, "-o", packed, "-q", "--pack")
     assert result.returncode == 0, result.stderr
     a, b = read_step(plain), read_step(packed)
     assert (len(faces_of(a)), len(faces_of(b))) == (88, 4)
