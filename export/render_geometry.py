@@ -26,9 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from patching.bernstein import elevation_matrix_2d
 from patching.surface import BezierSurface
-from patching.toolpath.geometry import basis
+from patching.toolpath.geometry import basis, common_nets
 
 __all__ = ["EDGE_PIXELS", "MAX_SAMPLES", "MAX_VERTICES", "PatchSamples", "grid_size", "grid_triangles", "sample_patches"]
 
@@ -78,20 +77,6 @@ class PatchSamples:
         return np.concatenate(out)
 
 
-def _nets(surface: BezierSurface):
-    """(faces, nets (p, d+1, d+1, 3), d): every patch raised to the largest degree (exact)."""
-    d = max(g.degree for g in surface.groups)
-    faces, nets = [], []
-    for g in surface.groups:
-        c = np.asarray(g.coefficients, dtype=np.float64)
-        if g.degree != d:
-            e = elevation_matrix_2d(g.degree, d)
-            c = np.einsum("ab,kbc->kac", e, c.reshape(len(c), -1, 3)).reshape(len(c), d + 1, d + 1, 3)
-        faces.append(np.asarray(g.faces, dtype=np.int64))
-        nets.append(c)
-    return np.concatenate(faces), np.concatenate(nets), d
-
-
 def grid_size(surface: BezierSurface, pixel: float, edge_pixels: float = EDGE_PIXELS) -> int:
     """Samples per patch side for a picture whose pixel is ``pixel`` model units (module
     docstring): the same for every patch, within [MIN_SAMPLES, MAX_SAMPLES] and MAX_VERTICES."""
@@ -113,7 +98,7 @@ def grid_size(surface: BezierSurface, pixel: float, edge_pixels: float = EDGE_PI
 
 def sample_patches(surface: BezierSurface, m: int) -> PatchSamples:
     """Points, normals and curvatures on the m x m grid of every patch (module docstring)."""
-    faces, nets, d = _nets(surface)
+    faces, nets, d = common_nets(surface)  # every patch raised to the largest degree (exact)
     u = np.linspace(0.0, 1.0, m)
     b, db, ddb = basis(d, u)
 
