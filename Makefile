@@ -28,7 +28,7 @@ demo: $(STAMP)
 	$(BIN)/nupatch check $(DEMO_OUT)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(JOBS) --dist worksteal
 
 clean:
 	rm -rf build .pytest_cache
