@@ -133,7 +133,7 @@ def surface_field(operator, surface, sampled: Sampled, columns: np.ndarray, m: i
     from dataclasses import replace
 
     from patching.bernstein import evaluate_pairs
-    from patching.toolpath.geometry import common_nets
+    from patching.bernstein import common_nets
 
     rows = np.arange(sum(len(g.faces) for g in operator.groups), dtype=np.int64)
     values = column_values(operator, columns, rows, m)  # (p, m, m, k)

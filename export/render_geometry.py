@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from patching.surface import BezierSurface
-from patching.toolpath.geometry import basis, common_nets
+from patching.bernstein import bernstein_derivatives, common_nets
 
 __all__ = ["EDGE_PIXELS", "MAX_SAMPLES", "MAX_VERTICES", "PatchSamples", "grid_size", "grid_triangles", "sample_patches"]
 
@@ -100,7 +100,7 @@ def sample_patches(surface: BezierSurface, m: int) -> PatchSamples:
     """Points, normals and curvatures on the m x m grid of every patch (module docstring)."""
     faces, nets, d = common_nets(surface)  # every patch raised to the largest degree (exact)
     u = np.linspace(0.0, 1.0, m)
-    b, db, ddb = basis(d, u)
+    b, db, ddb = bernstein_derivatives(d, u)
 
     def grid(bs, bt):  # sum_ij bs[a, i] bt[b, j] nets[k, i, j, c] -> (k, a, b, c)
         return np.einsum("ai,kijc,bj->kabc", bs, nets, bt, optimize=True)

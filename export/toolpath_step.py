@@ -155,7 +155,8 @@ def _welded(vertices: np.ndarray, quads: np.ndarray, groups: list[PatchGroup], s
     docstring)."""
     from patching.errors import NupatchError
     from patching.surface import CORNER_PARAMETERS
-    from patching.toolpath.geometry import evaluate_points, group_nets, unit_normals
+    from patching.bernstein import group_nets
+    from patching.toolpath.geometry import evaluate_points, unit_normals
 
     key = np.round(vertices / max(1e-7 * size, 1e-300)).astype(np.int64)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)

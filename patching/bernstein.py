@@ -6,9 +6,24 @@ from __future__ import annotations
 from functools import lru_cache
 from math import comb
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-__all__ = ["elevation_matrix", "elevation_matrix_2d", "bernstein", "evaluate_nets", "evaluate_pairs", "contract"]
+if TYPE_CHECKING:
+    from .surface import BezierSurface
+
+__all__ = [
+    "elevation_matrix",
+    "elevation_matrix_2d",
+    "bernstein",
+    "bernstein_derivatives",
+    "common_nets",
+    "group_nets",
+    "evaluate_nets",
+    "evaluate_pairs",
+    "contract",
+]
 
 
 @lru_cache(maxsize=None)
@@ -78,3 +93,48 @@ def evaluate_pairs(nets: np.ndarray, s: np.ndarray, t: np.ndarray, derivatives: 
     along_s = np.einsum("mi,mijc->mjc", bs, nets)
     dt = d * np.einsum("mj,mjc->mc", bernstein(d - 1, t), along_s[:, 1:] - along_s[:, :-1])
     return points, ds, dt
+
+
+def common_nets(surface: "BezierSurface") -> tuple[np.ndarray, np.ndarray, int]:
+    """All patches at one degree d (the largest): (faces (p,), nets (p, d+1, d+1, 3), d),
+    rows in ``BezierSurface.patches`` order."""
+    return group_nets(surface.groups)
+
+
+def group_nets(groups) -> tuple[np.ndarray, np.ndarray, int]:
+    """``common_nets`` of a sequence of ``PatchGroup`` (exact Bernstein degree elevation)."""
+    d = max(g.degree for g in groups)
+    faces, nets = [], []
+    for g in groups:
+        c = np.asarray(g.coefficients, dtype=np.float64)
+        if g.degree != d:
+            e = elevation_matrix_2d(g.degree, d)
+            c = np.einsum("ab,kbc->kac", e, c.reshape(len(c), -1, 3)).reshape(len(c), d + 1, d + 1, 3)
+        faces.append(np.asarray(g.faces, dtype=np.int64))
+        nets.append(c)
+    return np.concatenate(faces), np.concatenate(nets), d
+
+
+def bernstein_derivatives(d: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bernstein values B^d_j(x), first and second derivatives: three (N, d+1) arrays
+    (B' = d (B^{d-1}_{j-1} - B^{d-1}_j), B'' = d (d-1) (B^{d-2}_{j-2} - 2 B^{d-2}_{j-1} + B^{d-2}_j))."""
+    x = np.asarray(x, dtype=np.float64)
+    b = _bernstein_triangle(d, x)
+    b1 = np.zeros((x.size, d + 2))
+    b1[:, 1:-1] = _bernstein_triangle(d - 1, x)
+    db = d * (b1[:, :-1] - b1[:, 1:])
+    b2 = np.zeros((x.size, d + 3))
+    b2[:, 2:-2] = _bernstein_triangle(d - 2, x) if d >= 2 else 0.0
+    ddb = d * (d - 1) * (b2[:, :-2] - 2 * b2[:, 1:-1] + b2[:, 2:]) if d >= 2 else np.zeros_like(b)
+    return b, db, ddb
+
+
+def _bernstein_triangle(d: int, x: np.ndarray) -> np.ndarray:
+    """(N, d+1) B^d_j(x) by the triangle B^k_j = (1 - x) B^{k-1}_j + x B^{k-1}_{j-1}."""
+    out = np.zeros((x.size, d + 1))
+    out[:, 0] = 1.0
+    y = 1.0 - x
+    for k in range(1, d + 1):
+        out[:, 1 : k + 1] = out[:, 1 : k + 1] * y[:, None] + out[:, :k] * x[:, None]
+        out[:, 0] *= y
+    return out

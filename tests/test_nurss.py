@@ -13,7 +13,7 @@ from patching.rules.nurss import nurss_local_matrix
 from patching.subdivision.catmark import subdivision_operator
 from tests.reference_bspline import blossom_weights
 from patching.mesh.primitives import torus_grid
-from tests.test_subdivision import _occ_refined_poles, _refined_ids, _ring_ids, polar_disk
+from tests.reference_refinement import occ_refined_poles, polar_disk, refined_ids, ring_ids
 
 
 def catmull_clark_ring(n: int) -> np.ndarray:
@@ -88,8 +88,8 @@ def test_regular_non_uniform_torus_is_occ_knot_insertion():
     mesh = torus_grid(m, n, du, dv)
     mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
     _, child = subdivision_operator(mesh, rules="nurss")
-    vid, _ = _refined_ids(mesh, np.arange(m * n).reshape(m, n), np.arange(m * n).reshape(m, n))
-    reference = _occ_refined_poles(mesh.vertices.reshape(m, n, 3), du, dv)
+    vid, _ = refined_ids(mesh, np.arange(m * n).reshape(m, n), np.arange(m * n).reshape(m, n))
+    reference = occ_refined_poles(mesh.vertices.reshape(m, n, 3), du, dv)
     # Boehm's algorithm against our masks, coordinates of size 4: round-off
     assert np.abs(child.vertices[vid] - reference).max() <= 1e-12 * 8.0
 
@@ -99,7 +99,7 @@ def test_ep_rows_in_s_are_the_nurss_matrix_and_the_rest_is_seed():
     mesh = polar_disk(n, spoke_intervals=[1.0, 3.0, 1.5, 4.0, 2.0], outer="spoke")
     s, child = subdivision_operator(mesh, rules="nurss")
     seed, _ = subdivision_operator(mesh, rules="seed")
-    parent, kids, d = _ring_ids(mesh, 0)
+    parent, kids, d = ring_ids(mesh, 0)
     assert np.abs(s[kids][:, parent].toarray() - nurss_local_matrix(d)).max() < 1e-15
     assert abs(s[kids].toarray().sum() - s[kids][:, parent].toarray().sum()) < 1e-12  # closed 1-ring
     others = np.setdiff1d(np.arange(s.shape[0]), kids)

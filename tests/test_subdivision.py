@@ -20,6 +20,7 @@ from patching.mesh.obj import read_obj
 from patching.mesh.primitives import open_grid, torus_grid
 from patching.subdivision import limit_points, limit_tangents, subdivide, subdivision_operator
 from tests.conftest import shape_files
+from tests.reference_refinement import occ_periodic_bicubic, occ_refined_poles, polar_disk, refined_ids, ring_ids
 
 # Round-off: every reference point is a short sum of O(1) weights times coordinates of size
 # O(10); both sides add the same terms in a different order.
@@ -464,73 +465,6 @@ def test_subdivide_steps_and_bad_options():
 # 3. Non-uniform regular regions: midpoint knot insertion, checked against OpenCASCADE
 
 
-def _occ_refined_poles(grid, du, dv):
-    """Poles of OCC's periodic bicubic B-spline (docs/knots.md mapping) after inserting the midpoint
-    of every knot interval with InsertUKnot / InsertVKnot."""
-    from OCP.Geom import Geom_BSplineSurface
-    from OCP.gp import gp_Pnt
-    from export.ocp_compat import TColgp_Array2OfPnt
-    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
-
-    m, n, _ = grid.shape
-    poles = TColgp_Array2OfPnt(1, m, 1, n)
-    for k in range(1, m + 1):
-        for l in range(1, n + 1):
-            poles.SetValue(k, l, gp_Pnt(*map(float, grid[(k - 2) % m, (l - 2) % n])))
-
-    def knots(d):
-        values = np.concatenate([[0.0], np.cumsum(d)])
-        kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
-        for i, v in enumerate(values):
-            kk.SetValue(i + 1, float(v))
-            mm.SetValue(i + 1, 1)
-        return kk, mm, values
-
-    uk, um, uval = knots(du)
-    vk, vm, vval = knots(dv)
-    surf = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, True, True)
-    for u in (uval[:-1] + uval[1:]) / 2:
-        surf.InsertUKnot(float(u), 1, 1e-12)
-    for v in (vval[:-1] + vval[1:]) / 2:
-        surf.InsertVKnot(float(v), 1, 1e-12)
-    nu, nv = surf.NbUPoles(), surf.NbVPoles()
-    assert (nu, nv) == (2 * m, 2 * n)
-    out = np.empty((nu, nv, 3))
-    for k in range(1, nu + 1):
-        for l in range(1, nv + 1):
-            p = surf.Pole(k, l)
-            out[(k - 2) % nu, (l - 2) % nv] = p.X(), p.Y(), p.Z()
-    return out
-
-
-def _refined_ids(mesh, vid, fid):
-    """Child ids of a refined grid.  vid (m, n): parent vertex of grid point (a, b); fid (m, n):
-    parent face with corners (a, b), (a+1, b), (a+1, b+1), (a, b+1).  Returns the child vertex
-    ids (2m, 2n): [2a, 2b] vertex point, [2a+1, 2b] edge point of (a, b)-(a+1, b), [2a, 2b+1]
-    of (a, b)-(a, b+1), [2a+1, 2b+1] face point; and the child face ids (2m, 2n) in the same
-    convention (child face h sits at the corner origin(h) of its parent face)."""
-    from patching.topology.tables import Topology
-
-    t = Topology(mesh)
-    nf, ne = mesh.n_faces, t.n_edges
-    m, n = vid.shape
-    V = np.empty((2 * m, 2 * n), np.int64)
-    Fc = np.empty((2 * m, 2 * n), np.int64)
-    for a in range(m):
-        for b in range(n):
-            A, B = (a + 1) % m, (b + 1) % n
-            V[2 * a, 2 * b] = nf + ne + vid[a, b]
-            V[2 * a + 1, 2 * b] = nf + t.edge_id(int(vid[a, b]), int(vid[A, b]))
-            V[2 * a, 2 * b + 1] = nf + t.edge_id(int(vid[a, b]), int(vid[a, B]))
-            f = int(fid[a, b])
-            V[2 * a + 1, 2 * b + 1] = f
-            corners = [vid[a, b], vid[A, b], vid[A, B], vid[a, B]]
-            cells = [(2 * a, 2 * b), (2 * a + 1, 2 * b), (2 * a + 1, 2 * b + 1), (2 * a, 2 * b + 1)]
-            for h in range(mesh.face_offsets[f], mesh.face_offsets[f + 1]):
-                Fc[cells[corners.index(mesh.face_vertices[h])]] = h
-    return V, Fc
-
-
 @pytest.mark.parametrize("seed,m,n,ratio", [(0, 5, 6, 20.0), (1, 6, 5, 5.0), (2, 7, 7, 100.0)])
 def test_nonuniform_torus_equals_occ_knot_insertion(seed, m, n, ratio):
     rng = np.random.default_rng(seed)
@@ -538,11 +472,12 @@ def test_nonuniform_torus_equals_occ_knot_insertion(seed, m, n, ratio):
     mesh = torus_grid(m, n, du, dv)
     mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
     vid = np.arange(m * n).reshape(m, n)  # torus_grid numbering, faces likewise
+    fid = vid  # before the first step the faces are numbered like the grid points
     reference = mesh.vertices.reshape(m, n, 3)
     for step in range(2):  # the second step reads the child's own (halved) interval tags
         S, child = subdivision_operator(mesh, rules="seed")
-        reference = _occ_refined_poles(reference, du, dv)
-        vid, fid = _refined_ids(mesh, vid, vid if step == 0 else fid)
+        reference = occ_refined_poles(reference, du, dv)
+        vid, fid = refined_ids(mesh, vid, fid)
         # OCC's knot insertion (Boehm) and our masks are both exact rational formulas in the
         # intervals: the difference is round-off of a few operations on coordinates of size 4.
         assert np.abs(child.vertices[vid] - reference).max() <= 1e-12 * _size(mesh), f"step {step}"
@@ -554,70 +489,13 @@ def test_knot_insertion_check_can_fail():
     du, dv = np.array([1.0, 3.0, 1.0, 2.0, 5.0]), np.array([1.0, 2.0, 1.0, 4.0])
     mesh = torus_grid(5, 4, du, dv)
     _, child = subdivision_operator(mesh)
-    vid, _ = _refined_ids(mesh, np.arange(20).reshape(5, 4), np.arange(20).reshape(5, 4))
-    wrong = _occ_refined_poles(mesh.vertices.reshape(5, 4, 3), du[[1, 0, 2, 3, 4]], dv)
+    vid, _ = refined_ids(mesh, np.arange(20).reshape(5, 4), np.arange(20).reshape(5, 4))
+    wrong = occ_refined_poles(mesh.vertices.reshape(5, 4, 3), du[[1, 0, 2, 3, 4]], dv)
     assert np.abs(child.vertices[vid] - wrong).max() > 1e-3
 
 
 # ---------------------------------------------------------------------------------------------
 # 4-5. Non-uniform extraordinary points: the eigen-polyhedron rules inside S
-
-
-def polar_disk(n: int, rings: int = 3, spoke_intervals=None, seed: int = 0, outer: str = "random"):
-    """An open disk of n sectors of rings x rings quads around one vertex of valence n.
-
-    Sector i has grid points (p, q), 0 <= p, q <= rings, (0, 0) the centre, (p, 0) on spoke i,
-    (0, q) on spoke i+1 (= sector i+1's (q, 0)).  spoke_intervals[i] goes on the strip of the
-    spoke edge (0,0)-(1,0) of sector i; the other strips get random intervals in [1, 3]
-    (outer="random") or the interval of their spoke (outer="spoke").
-    """
-    rng = np.random.default_rng(seed)
-    ids = {}
-    verts = [(0.0, 0.0, 0.0)]
-
-    def vid(i, p, q):
-        i %= n
-        if p == 0 and q == 0:
-            return 0
-        if q == 0:
-            key = ("spoke", i, p)
-        elif p == 0:
-            key = ("spoke", (i + 1) % n, q)
-        else:
-            key = ("in", i, p, q)
-        if key not in ids:
-            ids[key] = len(verts)
-            a0, a1 = 2 * np.pi * i / n, 2 * np.pi * (i + 1) / n
-            x = p * np.array([np.cos(a0), np.sin(a0)]) + q * np.array([np.cos(a1), np.sin(a1)])
-            verts.append((x[0], x[1], 0.3 * np.sin(p + 2 * q) + 0.1 * rng.normal()))
-        return ids[key]
-
-    faces = []
-    for i in range(n):
-        for p in range(rings):
-            for q in range(rings):
-                faces.append([vid(i, p, q), vid(i, p + 1, q), vid(i, p + 1, q + 1), vid(i, p, q + 1)])
-    intervals = {}
-    for i in range(n):
-        for p in range(rings):
-            if spoke_intervals is not None and (p == 0 or outer == "spoke"):
-                d = spoke_intervals[i]
-            else:
-                d = rng.uniform(1, 3)
-            intervals[(vid(i, p, 0), vid(i, p + 1, 0))] = float(d)
-    return from_arrays(np.array(verts), faces, intervals=intervals)
-
-
-def _ring_ids(mesh, v):
-    """[V, E_0.., F_0..] of vertex v (eigen_polyhedron's order) and the child ids of the same
-    points after one step."""
-    from patching.topology.tables import Topology
-
-    t = Topology(mesh)
-    ring = t.one_ring(v)
-    parent = np.concatenate([[v], t.dest[ring], t.dest[t.next[ring]]])
-    child = np.concatenate([[mesh.n_faces + t.n_edges + v], mesh.n_faces + t.edge_of[ring], t.face[ring]])
-    return parent, child, t.halfedge_interval[ring]
 
 
 @pytest.mark.parametrize("n", [3, 5, 6, 9])
@@ -632,7 +510,7 @@ def test_ep_rows_are_the_eigen_polyhedron_matrix(n):
     ep = 0
     for m_ in (mesh, child):
         S, nxt = subdivision_operator(m_)
-        parent, kids, d = _ring_ids(m_, ep)
+        parent, kids, d = ring_ids(m_, ep)
         block = S[kids][:, parent].toarray()
         assert np.abs(np.asarray(S[kids].sum(axis=1)).ravel() - 1).max() < 1e-14
         # the same rule: S solves all EPs of a valence at once from the exact intervals, the
@@ -647,7 +525,7 @@ def test_ep_with_equal_spoke_intervals_is_catmull_clark():
     edge and face points are Catmull-Clark's."""
     mesh = polar_disk(5, spoke_intervals=[2.0] * 5, seed=3)
     S, _ = subdivision_operator(mesh)
-    parent, kids, _ = _ring_ids(mesh, 0)
+    parent, kids, _ = ring_ids(mesh, 0)
     fp, ep, vp = reference_step(mesh, "cc")
     from patching.topology.tables import Topology
 
@@ -682,7 +560,7 @@ def test_ep_eigenvalues_double_subdominant(n):
         mesh = polar_disk(n, rings=2, spoke_intervals=rng.uniform(1, 5, n), seed=trial)
         _, child = subdivision_operator(mesh)
         S, _ = subdivision_operator(child)
-        parent, kids, _ = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+        parent, kids, _ = ring_ids(child, ring_ids(mesh, 0)[1][0])
         mods = _subdominance(S[kids][:, parent].toarray())
         assert abs(mods[0] - 1) < 1e-12
         assert abs(mods[1] - lam) < 1e-9 and abs(mods[2] - lam) < 1e-9
@@ -697,7 +575,7 @@ def test_limit_point_from_left_eigenvector_matches_repeated_subdivision(n):
     mesh = polar_disk(n, rings=2, spoke_intervals=rng.uniform(1, 5, n), seed=n)
     _, child = subdivision_operator(mesh)
     S, _ = subdivision_operator(child)
-    parent, kids, d = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+    parent, kids, d = ring_ids(child, ring_ids(mesh, 0)[1][0])
     local = S[kids][:, parent].toarray()
     limit = eig.limit_point_weights(d) @ child.vertices[parent]
     ring = child.vertices[parent]
@@ -762,7 +640,7 @@ def test_nonuniform_crease_curve_equals_occ_curve_knot_insertion(sharpness):
     d = du
     for step in range(2):  # the semi-sharp crease (s = 3) is still sharp in both steps
         _, child = subdivision_operator(mesh)
-        vid, fid = _refined_ids(mesh, vid, fid)
+        vid, fid = refined_ids(mesh, vid, fid)
         curve = _occ_refined_curve(curve, d)
         assert np.abs(child.vertices[vid[:, 0]] - curve).max() <= 1e-12 * _size(mesh), f"step {step}"
         mesh, d = child, np.repeat(d / 2, 2)
@@ -791,10 +669,7 @@ def test_nonuniform_open_grid_boundary_interpolates_corners_and_is_c0():
 
 
 def test_limit_points_and_tangents_equal_occ_nurbs_on_nonuniform_torus():
-    from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt, gp_Vec
-    from export.ocp_compat import TColgp_Array2OfPnt
-    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     from patching.subdivision import limit_points, limit_tangents
 
@@ -803,23 +678,7 @@ def test_limit_points_and_tangents_equal_occ_nurbs_on_nonuniform_torus():
     du, dv = rng.uniform(1, 5, m), rng.uniform(1, 5, n)
     mesh = torus_grid(m, n, du, dv)
     mesh = mesh.with_positions(mesh.vertices + rng.normal(scale=0.2, size=mesh.vertices.shape))
-    grid = mesh.vertices.reshape(m, n, 3)
-    poles = TColgp_Array2OfPnt(1, m, 1, n)
-    for k in range(1, m + 1):
-        for l in range(1, n + 1):
-            poles.SetValue(k, l, gp_Pnt(*map(float, grid[(k - 2) % m, (l - 2) % n])))
-
-    def knots(d):
-        values = np.concatenate([[0.0], np.cumsum(d)])
-        kk, mm = TColStd_Array1OfReal(1, values.size), TColStd_Array1OfInteger(1, values.size)
-        for i, v in enumerate(values):
-            kk.SetValue(i + 1, float(v))
-            mm.SetValue(i + 1, 1)
-        return kk, mm, values
-
-    uk, um, uval = knots(du)
-    vk, vm, vval = knots(dv)
-    surf = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, True, True)
+    surf, uval, vval = occ_periodic_bicubic(mesh.vertices.reshape(m, n, 3), du, dv)
     L = limit_points(mesh).reshape(m, n, 3)
     T = limit_tangents(mesh).reshape(m, n, 2, 3)
     for a in range(m):
@@ -1050,7 +909,7 @@ def test_modified_angles_option_reaches_the_ep_rows(n):
 
     rng = np.random.default_rng(n)
     mesh = polar_disk(n, spoke_intervals=rng.uniform(1, 10, n))
-    parent, kids, d = _ring_ids(mesh, 0)
+    parent, kids, d = ring_ids(mesh, 0)
     s_std, _ = subdivision_operator(mesh, angles="standard")
     s_mod, _ = subdivision_operator(mesh, angles="modified")
     block = s_mod[kids][:, parent].toarray()
@@ -1138,7 +997,7 @@ def _occ_insert_midpoints(surf):
                       for j in range(1, surf.NbVPoles() + 1)] for i in range(1, surf.NbUPoles() + 1)])
 
 
-def _open_refined_ids(mesh, vid):
+def _openrefined_ids(mesh, vid):
     """Child ids (2m-1, 2n-1) of an open grid whose points have parent ids vid (m, n): vertex
     points at even (a, b), edge points at one odd index, face points at two."""
     from patching.topology.tables import Topology
@@ -1193,7 +1052,7 @@ def test_clamped_open_grid_steps_equal_occ_knot_insertion(name, mesh, shape):
     zeros = 1  # zero edges at each end of a row or column
     for step in range(3):
         ref = _occ_insert_midpoints(surf)
-        G = _open_refined_ids(mesh, vid)
+        G = _openrefined_ids(mesh, vid)
         _, mesh = subdivision_operator(mesh)
         zeros *= 2
         P = mesh.vertices[G]
@@ -1381,7 +1240,7 @@ def test_ep_block_of_s_and_the_local_matrix_agree_at_extreme_ratios():
     mesh = polar_disk(5, rings=2, spoke_intervals=d, outer="spoke")
     _, child = subdivision_operator(mesh)
     S, _ = subdivision_operator(child)
-    parent, kids, dc = _ring_ids(child, _ring_ids(mesh, 0)[1][0])
+    parent, kids, dc = ring_ids(child, ring_ids(mesh, 0)[1][0])
     block = S[kids][:, parent].toarray()
     local = eig.local_subdivision_matrix(dc)
     # entries up to ~10 at this ratio; S's batch solve and the cached single solve differ by

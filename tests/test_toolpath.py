@@ -18,7 +18,7 @@ import patching
 from patching.evaluation import evaluate_nets, sample_surface
 from patching.mesh.primitives import open_grid
 from patching.toolpath import fermat_spiral, segment, tool_path
-from patching.toolpath.geometry import common_nets
+from patching.bernstein import common_nets
 from patching.toolpath.path import side_normals, up_faces
 from patching.toolpath.segmentation import cut_weight, dual_edges, spanning_tree
 from patching.topology.features import sharp_edges

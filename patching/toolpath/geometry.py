@@ -13,57 +13,11 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..bernstein import bernstein, elevation_matrix_2d
-from ..surface import BezierSurface
+from ..bernstein import bernstein, bernstein_derivatives
 
-__all__ = ["SurfaceIndex", "basis", "common_nets", "evaluate_points", "group_nets", "unit_normals"]
+__all__ = ["SurfaceIndex", "evaluate_points", "unit_normals"]
 
 CHUNK = 8192
-
-
-def common_nets(surface: BezierSurface) -> tuple[np.ndarray, np.ndarray, int]:
-    """All patches at one degree d (the largest): (faces (p,), nets (p, d+1, d+1, 3), d),
-    rows in ``BezierSurface.patches`` order."""
-    return group_nets(surface.groups)
-
-
-def group_nets(groups) -> tuple[np.ndarray, np.ndarray, int]:
-    """``common_nets`` of a sequence of ``PatchGroup`` (exact Bernstein degree elevation)."""
-    d = max(g.degree for g in groups)
-    faces, nets = [], []
-    for g in groups:
-        c = np.asarray(g.coefficients, dtype=np.float64)
-        if g.degree != d:
-            e = elevation_matrix_2d(g.degree, d)
-            c = np.einsum("ab,kbc->kac", e, c.reshape(len(c), -1, 3)).reshape(len(c), d + 1, d + 1, 3)
-        faces.append(np.asarray(g.faces, dtype=np.int64))
-        nets.append(c)
-    return np.concatenate(faces), np.concatenate(nets), d
-
-
-def basis(d: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bernstein values B^d_j(x), first and second derivatives: three (N, d+1) arrays
-    (B' = d (B^{d-1}_{j-1} - B^{d-1}_j), B'' = d (d-1) (B^{d-2}_{j-2} - 2 B^{d-2}_{j-1} + B^{d-2}_j))."""
-    x = np.asarray(x, dtype=np.float64)
-    b = _bernstein(d, x)
-    b1 = np.zeros((x.size, d + 2))
-    b1[:, 1:-1] = _bernstein(d - 1, x)
-    db = d * (b1[:, :-1] - b1[:, 1:])
-    b2 = np.zeros((x.size, d + 3))
-    b2[:, 2:-2] = _bernstein(d - 2, x) if d >= 2 else 0.0
-    ddb = d * (d - 1) * (b2[:, :-2] - 2 * b2[:, 1:-1] + b2[:, 2:]) if d >= 2 else np.zeros_like(b)
-    return b, db, ddb
-
-
-def _bernstein(d: int, x: np.ndarray) -> np.ndarray:
-    """(N, d+1) B^d_j(x) by the triangle B^k_j = (1 - x) B^{k-1}_j + x B^{k-1}_{j-1}."""
-    out = np.zeros((x.size, d + 1))
-    out[:, 0] = 1.0
-    y = 1.0 - x
-    for k in range(1, d + 1):
-        out[:, 1 : k + 1] = out[:, 1 : k + 1] * y[:, None] + out[:, :k] * x[:, None]
-        out[:, 0] *= y
-    return out
 
 
 def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int = 1) -> tuple[np.ndarray, ...]:
@@ -73,8 +27,8 @@ def evaluate_points(nets: np.ndarray, s: np.ndarray, t: np.ndarray, order: int =
     One batched product: the tensor-product weights B_i(s) B_j(t) (and their derivatives) of
     every point, (N, q, (d+1)^2), times its net, (N, (d+1)^2, 3)."""
     d = nets.shape[1] - 1
-    bs, dbs, ddbs = basis(d, s)
-    bt, dbt, ddbt = basis(d, t)
+    bs, dbs, ddbs = bernstein_derivatives(d, s)
+    bt, dbt, ddbt = bernstein_derivatives(d, t)
     if order >= 2:
         ws, wt = np.stack([bs, dbs, bs, ddbs, dbs, bs], 1), np.stack([bt, bt, dbt, bt, dbt, ddbt], 1)
     elif order == 1:

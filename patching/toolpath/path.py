@@ -27,7 +27,8 @@ from ..errors import NupatchError, UnsupportedError
 from ..mesh import ControlMesh
 from ..surface import BezierSurface
 from ..topology import Topology
-from .geometry import SurfaceIndex, common_nets, evaluate_points, unit_normals
+from ..bernstein import common_nets
+from .geometry import SurfaceIndex, evaluate_points, unit_normals
 from .segmentation import Piece, segment
 from .spiral import fermat_spiral
 
