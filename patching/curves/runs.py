@@ -361,7 +361,7 @@ def limit_operator(n: int, d: int, closed: bool, sharp: np.ndarray) -> tuple[np.
     return np.concatenate(knots_all), sp.csr_matrix(np.vstack(rows))
 
 
-def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
+def vertex_limit_weights(degree: int, sharpness: float, scheme=None) -> np.ndarray:
     """The limit point of an interior semi-sharp vertex as ``P_v + sum_i w_i (d+_i + d-_i)``.
 
     ``d+-_i = P_(v +- i) - P_v`` (i = 1 .. floor(d/2); the vertex alone, no other tag within
@@ -374,6 +374,8 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
     centre of the descendant's span, since the vertex has no knot of its own).  Fractional s
     (odd d only, ``semi_sharp_step``): each blended step is followed by smooth ones only, so
     by linearity the limit is ``(1 - f) w(floor s) + f w(ceil s)``.  s = inf gives w = 0.
+    ``scheme``: another crease rule of the same structure (``creases.crease_scheme_solutions``)
+    in place of ``crease_scheme(d)``, integer s only.
     """
     d = int(degree)
     s = float(sharpness)
@@ -387,7 +389,15 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
     if f and d % 2 == 0:
         raise UnsupportedError(f"fractional sharpness {s:g} needs an odd degree, not {d}")
     K = 4 * d + 8
-    T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
+    if scheme is None:
+        T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
+    else:  # the half-line matrix: the scheme's r rows, then the uniform stencils
+        J = _J(d)
+        i, j = np.mgrid[:K, :K]
+        x = i - 2 * j + J
+        T = np.where((x >= 0) & (x <= d + 1), np.vectorize(comb)(d + 1, np.clip(x, 0, d + 1)) / 2.0**d, 0.0)
+        T[: scheme.r] = 0.0
+        T[: scheme.r, : scheme.T.shape[1]] = scheme.T
     offs = np.arange(1, h + 1)
     knots = np.arange(d + 2, dtype=np.float64)
     from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
