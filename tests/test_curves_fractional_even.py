@@ -136,3 +136,31 @@ def test_refusals():
         c.refine(2)
     with pytest.raises(UnsupportedError, match="needs at least|too close|closer"):
         Curve(P, 4, corners={5: 0.5, 7: 0.5}).limit()
+
+
+@pytest.mark.parametrize("d", [4, 6])
+def test_closed_polygon_is_continuous_in_s(d):
+    """Closed polygons clamp their periodic limit at a seam that the blend puts away from the
+    tags, so the parameters start elsewhere than the integer curves'.  Aligned by the
+    parameter of a(0) on b (a 1-D minimisation), the curve at s = eps is within O(eps) of the
+    s = 0 curve and at s = 1 - eps of the s = 1 curve, at 2001 parameters."""
+    from scipy.optimize import minimize_scalar
+
+    n = 26
+    P = np.random.default_rng(d + 40).normal(size=(n, 2))
+
+    def aligned(a, b):
+        T = b.domain[1]
+        tb = np.linspace(0, T, 20001)
+        p0 = a.evaluate(0.0)
+        k = int(np.argmin(np.linalg.norm(b.evaluate(tb) - p0, axis=1)))
+        r = minimize_scalar(lambda u: np.linalg.norm(b.evaluate(u % T) - p0), bounds=(tb[k] - T / 2e4, tb[k] + T / 2e4),
+                            method="bounded", options={"xatol": 1e-13})
+        t = np.linspace(0, a.domain[1], 2001)
+        return np.abs(a.evaluate(t) - b.evaluate((t + r.x) % T)).max()
+
+    smooth, sharp = Curve(P, d, True).limit(), Curve(P, d, True, corners={6: 1}).limit()
+    for eps in (1e-4, 1e-7):
+        assert aligned(Curve(P, d, True, corners={6: eps}).limit(), smooth) < 3 * eps
+        assert aligned(Curve(P, d, True, corners={6: 1 - eps}).limit(), sharp) < 3 * eps
+    assert aligned(Curve(P, d, True, corners={6: 0.5}).limit(), smooth) > 1e-3  # a different curve

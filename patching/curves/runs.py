@@ -481,19 +481,19 @@ def fractional_even_limit(n: int, d: int, closed: bool, sharpness: np.ndarray) -
     def greville(knots, p):
         return float(np.mean(knots[p + 1 : p + d + 1]))
 
-    A0d = A0.toarray()
+    W0c, W1c = W0.tocsc(), W1.tocsc()
     remove, centres1 = [], []
     for v in frac:
         v = int(v)
         # the smooth step's two children of v: the two rows with v's largest weight
-        kids = np.argsort(-A0d[:, v], kind="stable")[:2]
-        g = [greville(k0, int(np.argmax(W0.toarray()[:, c]))) for c in kids]
+        kids = np.argsort(-A0[:, v].toarray().ravel(), kind="stable")[:2]
+        g = [greville(k0, int(np.argmax(W0c[:, int(c)].toarray().ravel()))) for c in kids]
         t0 = 0.5 * (g[0] + g[1])
         if abs(abs(g[0] - g[1]) - 1.0) > 1e-9:
             raise UnsupportedError(f"fractional sharpness of vertex {v} too close to a sharp vertex or an end at degree {d}",
                                    f"vertex {v}")
         remove.append(t0)
-        p1 = int(np.argmax(W1.toarray()[:, child1[v]]))
+        p1 = int(np.argmax(W1c[:, child1[v]].toarray().ravel()))
         centres1.append(greville(k1, p1))
     # c_0 without the knots t0 (exact knot removal, checked)
     kr = k0.copy()
@@ -502,9 +502,12 @@ def fractional_even_limit(n: int, d: int, closed: bool, sharpness: np.ndarray) -
         if len(hit) != 1:
             raise UnsupportedError(f"fractional sharpness too close to a sharp vertex at degree {d}", f"vertex {int(frac[0])}")
         kr = np.delete(kr, hit[0])
-    ins, R = insert_knots_matrix(kr, d, remove)
+    ins, R = insert_knots_matrix(kr, d, remove, sparse=True)
     assert np.allclose(ins, k0)
-    X = np.linalg.lstsq(R, C0, rcond=None)[0]
+    from scipy.sparse.linalg import spsolve  # here: only this rule needs it
+
+    X = spsolve((R.T @ R).tocsc(), R.T @ C0)  # R is banded: the normal equations are cheap
+    X = np.asarray(X).reshape(R.shape[1], C0.shape[1])
     if np.abs(R @ X - C0).max() > 1e-12 or len(kr) != len(k1):
         raise UnsupportedError(f"fractional sharpness of a vertex too close to a sharp vertex at degree {d}",
                                f"vertex {int(frac[0])}")
