@@ -50,7 +50,10 @@ B-spline face, ``export.curves.to_face``).  On a general Catmull-Clark mesh ther
 form: at an extraordinary vertex the limit has infinitely many polynomial pieces ([Sta98]),
 and the Pixar rules near EVs and semi-sharp creases do not give a finite knot structure
 either; that surface is exported as a refined mesh (``refine``) or through the G1 patch
-construction of ``nupatch build`` (which does not see the vectors).
+construction of ``nupatch build`` (which does not see the vectors).  An open grid has free
+ends (the full spans only, as the curves without end tags), not Catmull-Clark's boundary
+rules: there ``tensor_limit`` and ``refine`` differ near the boundary; on a torus grid they
+are the same surface.
 """
 
 from __future__ import annotations
