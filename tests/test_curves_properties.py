@@ -30,11 +30,13 @@ def curves(draw, degrees=ANY):
     v = 2 * d + 2
     while v <= n - 1 - (2 * d + 2):
         s = draw(SHARPNESS)
-        if d % 2 == 0 and 0 < s < math.inf:
-            s = float(math.ceil(s))  # even degrees take integer sharpness only
         if s > 0:
             corners[v] = s
         v += draw(st.integers(2 * d + 2, 3 * d + 2))
+    finite = [s for s in corners.values() if s < math.inf]
+    if d % 2 == 0 and finite:  # even d: a fractional sharpness must be at the last level
+        L = math.ceil(max(finite))
+        corners = {k: (float(L) if s < math.inf and s != int(s) and math.ceil(s) < L else s) for k, s in corners.items()}
     if not closed and draw(st.booleans()):
         corners[0] = corners[n - 1] = math.inf
     return Curve(P, d, closed, corners=corners)
