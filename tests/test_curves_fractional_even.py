@@ -164,3 +164,29 @@ def test_closed_polygon_is_continuous_in_s(d):
         assert aligned(Curve(P, d, True, corners={6: eps}).limit(), smooth) < 3 * eps
         assert aligned(Curve(P, d, True, corners={6: 1 - eps}).limit(), sharp) < 3 * eps
     assert aligned(Curve(P, d, True, corners={6: 0.5}).limit(), smooth) > 1e-3  # a different curve
+
+
+@pytest.mark.parametrize("d, flat", [(4, 1), (6, 2)])
+def test_between_integers_the_blend_adds_no_motion_of_its_own(d, flat):
+    """On the convex polygons of the even-degree counterexample (test_curves_properties), the
+    distance from P_v to the curve is monotone on each [k, k + 1] (measured at quarter
+    steps): the fractional rule moves between the two integer curves without overshooting
+    them; the non-monotone motion over s is the integer rules' (docs/curves.md)."""
+    from scipy.optimize import minimize_scalar
+
+    n = 21
+    P = np.zeros((n, 2))
+    P[:, 0] = np.arange(n) - 10.0
+    P[:, 1] = np.maximum(np.abs(P[:, 0]) - flat, 0)
+    ends = {0: math.inf, n - 1: math.inf}
+    grid = np.linspace(0, 3, 13)
+    dist = []
+    for s in grid:
+        lim = Curve(P, d, corners={**ends, 10: float(s)} if s else ends).limit()
+        t = np.linspace(*lim.domain, 4001)
+        k = int(np.argmin(np.linalg.norm(lim.evaluate(t), axis=1)))
+        r = minimize_scalar(lambda u: np.linalg.norm(lim.evaluate(u)), bounds=(t[k - 1], t[k + 1]), method="bounded",
+                            options={"xatol": 1e-13})
+        dist.append(r.fun)
+    steps = np.diff(np.array(dist)).reshape(3, 4)  # the quarter steps of [0, 1], [1, 2], [2, 3]
+    assert all((row > 0).all() or (row < 0).all() for row in steps), steps
