@@ -9,6 +9,12 @@
 - ``.obj``: the polygon after ``steps`` subdivision steps as an ``l`` polyline (with its
   remaining ``t corner`` tags); ``.svg``: that polygon as an SVG polyline (x, y; y up).
 
+- surfaces with control vectors on a regular grid ([KSD] eq. (15),
+  ``patching.curves.surface_vectors.tensor_limit``): the exact limit as one
+  ``Geom_BSplineSurface`` face (``to_face``, ``write_surface_step``).  General Catmull-Clark
+  meshes with control vectors have no such form (extraordinary vertices): ``nupatch
+  subdivide`` writes their refined mesh.
+
 Every writer goes through ``export.atomic.atomic_output`` (no partial file on failure).
 """
 
@@ -33,6 +39,9 @@ __all__ = [
     "to_cadquery",
     "write_curve",
     "subdivide_with_vectors",
+    "to_geom_surface",
+    "to_face",
+    "write_surface_step",
 ]
 
 
@@ -210,3 +219,52 @@ def subdivide_with_vectors(mesh, mesh_path: str | os.PathLike, steps: int, rules
                                f"{MAX_SUBDIVIDE_FACES:,}: take fewer steps", path.name)
     refined, kept, kept_values = refine(mesh, vectors, values, steps, rules=rules)
     return format_obj(refined, comment) + format_vector_tags(kept, kept_values) + rules_tag(rules) + "\n"
+
+
+def _array1(values, kind):
+    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    arr = (TColStd_Array1OfReal if kind is float else TColStd_Array1OfInteger)(1, len(values))
+    for i, x in enumerate(values, start=1):
+        arr.SetValue(i, kind(x))
+    return arr
+
+
+def to_geom_surface(surface):
+    """An OpenCASCADE ``Geom_BSplineSurface`` with the poles, knots and degrees of a
+    ``patching.curves.surface_vectors.BSplineSurface`` (non-rational, clamped)."""
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+
+    from export.ocp_compat import TColgp_Array2OfPnt
+
+    poles = np.asarray(surface.poles, dtype=np.float64)
+    if poles.shape[2] == 2:
+        poles = np.concatenate([poles, np.zeros(poles.shape[:2] + (1,))], axis=2)
+    nu, nv, _ = poles.shape
+    P = TColgp_Array2OfPnt(1, nu, 1, nv)
+    for a in range(nu):
+        for b in range(nv):
+            P.SetValue(a + 1, b + 1, gp_Pnt(*map(float, poles[a, b])))
+    ku, mu = np.unique(surface.knots_u, return_counts=True)
+    kv, mv = np.unique(surface.knots_v, return_counts=True)
+    du, dv = surface.degrees
+    return Geom_BSplineSurface(P, _array1(ku, float), _array1(kv, float), _array1(mu, int), _array1(mv, int),
+                               int(du), int(dv), False, False)
+
+
+def to_face(surface):
+    """A ``TopoDS_Face`` on the whole B-spline surface (valid: ``BRepCheck_Analyzer``)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+
+    maker = BRepBuilderAPI_MakeFace(to_geom_surface(surface), 1e-7)
+    if not maker.IsDone():
+        raise UnsupportedError("OpenCASCADE cannot make a face of this surface")
+    return maker.Face()
+
+
+def write_surface_step(surface, path: str | os.PathLike, name: str = "surface") -> Path:
+    """The exact B-spline surface as one STEP face (AP214, mm), atomically."""
+    from .step import write_step
+
+    return write_step(to_face(surface), path, name)

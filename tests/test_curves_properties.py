@@ -30,11 +30,13 @@ def curves(draw, degrees=ANY):
     v = 2 * d + 2
     while v <= n - 1 - (2 * d + 2):
         s = draw(SHARPNESS)
-        if d % 2 == 0 and 0 < s < math.inf:
-            s = float(math.ceil(s))  # even degrees take integer sharpness only
         if s > 0:
             corners[v] = s
         v += draw(st.integers(2 * d + 2, 3 * d + 2))
+    finite = [s for s in corners.values() if s < math.inf]
+    if d % 2 == 0 and finite:  # even d: a fractional sharpness must be at the last level
+        L = math.ceil(max(finite))
+        corners = {k: (float(L) if s < math.inf and s != int(s) and math.ceil(s) < L else s) for k, s in corners.items()}
     if not closed and draw(st.booleans()):
         corners[0] = corners[n - 1] = math.inf
     return Curve(P, d, closed, corners=corners)
@@ -250,3 +252,82 @@ def _origin(curve: Curve) -> float:
     from patching.curves.uniform import uniform_knots
 
     return float(uniform_knots(len(curve.points), curve.degree, curve.closed)[0][curve.degree])
+
+
+def test_no_quartic_crease_rule_of_the_papers_structure_moves_the_vertex_monotonically():
+    """[KSD]'s T_4 is one of three solutions of S M = M T with its structure (without the
+    natural-configuration condition); d = 6 has one.  Each quartic solution moves the vertex's
+    limit away from P_v on some polygon: the paper's and the second one raise w_2 at s = 1
+    (a polygon with S_1 = 0), the degenerate one (negative weight) sends w_1 through zero, so
+    |w_1| grows from s = 2 to s = 3 (a polygon with S_2 = 0).  So the non-monotone motion is
+    not the choice of one solution among several (docs/curves.md)."""
+    from patching.curves.creases import crease_scheme, crease_scheme_solutions
+    from patching.curves.runs import vertex_limit_weights
+
+    sols = crease_scheme_solutions(4)
+    assert len(sols) == 3
+    assert sum(np.abs(s.T - crease_scheme(4).T).max() < 1e-12 for s in sols) == 1
+    for sc in sols:
+        W = np.abs([vertex_limit_weights(4, k, sc) for k in range(6)])
+        rises = np.diff(W, axis=0)  # |w_i| along s = 0..5 for the polygon with only S_i != 0
+        assert rises.max() > 1e-4 * W.max(), sc.T
+
+
+@pytest.mark.parametrize("d, flat, rise_until", [(4, 1, 1), (6, 2, 2)])
+def test_even_degree_vertex_limit_on_a_convex_polygon_moves_away_then_back(d, flat, rise_until):
+    """The measured behaviour of the paper's integer rules at even degree, as a distance from
+    P_v to the curve (a point set, so no parameterisation enters): the polygon
+    y = max(|x| - flat, 0) is convex and symmetric, S_i = 0 for i <= flat, S_(flat+1) = (0, 2).
+    The closest point of the curve to P_v = (0, 0) is on the axis at y = 2 w_(flat+1)(s): it
+    rises from s = 0 to s = rise_until (d = 4: 2/384 -> 162/6144, 81/16 times farther; d = 6:
+    20 times), then falls monotonically to 0 at s = inf.  On this polygon the only path from
+    the s = 0 point to the s = inf point is the axis, so no reading of "moves monotonically"
+    (distance, or position along a path) holds."""
+    from scipy.optimize import minimize_scalar
+
+    from patching.curves.runs import vertex_limit_weights
+
+    n = 21
+    P = np.zeros((n, 2))
+    P[:, 0] = np.arange(n) - 10.0
+    P[:, 1] = np.maximum(np.abs(P[:, 0]) - flat, 0)
+    ends = {0: math.inf, n - 1: math.inf}
+    grid = [0, 1, 2, 3, 4, 6, math.inf]
+    dist = []
+    for s in grid:
+        lim = Curve(P, d, corners={**ends, 10: s} if s else ends).limit()
+        t = np.linspace(*lim.domain, 4001)
+        r = np.linalg.norm(lim.evaluate(t), axis=1)
+        k = int(np.argmin(r))
+        best = minimize_scalar(lambda u: np.linalg.norm(lim.evaluate(u)), bounds=(t[k - 1], t[k + 1]),
+                               method="bounded", options={"xatol": 1e-13})
+        dist.append(best.fun)
+        if s != math.inf:
+            assert abs(best.fun - 2 * vertex_limit_weights(d, s)[flat]) < 1e-12
+            assert abs(lim.evaluate(best.x)[0]) < 1e-6  # on the axis
+    dist = np.array(dist)
+    assert dist[-1] < 1e-13
+    steps = np.diff(dist)
+    assert (steps[:rise_until] > 0).all() and (steps[rise_until:] < 0).all()
+    if d == 4:
+        assert abs(dist[0] - 2 / 384) < 1e-13 and abs(dist[1] - 162 / 6144) < 1e-13
+        assert abs(dist[1] / dist[0] - 81 / 16) < 1e-9
+    else:
+        assert dist[2] > 20 * dist[0]
+
+
+@pytest.mark.parametrize("d, from_s", [(2, 0), (3, 0), (4, 1), (5, 0), (6, 2), (7, 0)])
+def test_weights_are_non_increasing_from_the_second_or_third_sharp_step(d, from_s):
+    """What does hold for every degree: each w_i(s) >= 0 is non-increasing for integer
+    s >= from_s (0 for d = 2, 3, 5, 7; 1 for d = 4; 2 for d = 6) and tends to 0 like 2^-s, so
+    from there on the vertex's limit approaches P_v monotonically on every polygon bent to one
+    side (S_i . S_j >= 0), and on every polygon for d = 2, 3 (one weight)."""
+    from patching.curves.runs import vertex_limit_weights
+
+    W = np.array([vertex_limit_weights(d, s) for s in range(0, 14)])
+    assert W.min() >= 0
+    assert (np.diff(W[from_s:], axis=0) <= 1e-17).all()
+    if from_s:
+        assert (np.diff(W[: from_s + 1], axis=0) > 0).any()
+    ratio = W[-1] / W[-2]
+    assert np.allclose(ratio, 0.5, atol=2e-3)

@@ -201,3 +201,121 @@ def test_subdivide_honours_control_vector_tags(run_cli, tmp_path):
     r = run_cli("subdivide", bad, "-n", "1", "-o", tmp_path / "b2.obj")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "vertex 99" in r.stderr
     assert not (tmp_path / "b2.obj").exists()
+
+
+def _uniform_reference(P, degrees, u, v):
+    """scipy's tensor-product uniform B-spline of the grid P (m, n, 3) with free open ends
+    (domain: the n - d full spans, parameters from 0 in spans), independent of the curves."""
+    from scipy.interpolate import BSpline
+
+    out = P
+    for axis, (d, t) in enumerate(zip(degrees, (u, v))):
+        out = np.moveaxis(out, axis, 0)
+        knots = np.arange(len(out) + d + 1, dtype=np.float64)
+        Bm = BSpline.design_matrix(np.asarray(t) + d, knots, d).toarray()
+        out = np.moveaxis(np.tensordot(Bm, out, axes=(1, 0)), 0, axis)
+    return out
+
+
+def test_tensor_limit_without_vectors_is_the_uniform_tensor_b_spline():
+    """No vectors, open grids: the exact limit equals scipy's tensor-product uniform
+    B-spline of the grid (free ends: the (m - d) x (n - d) full spans), to 1e-12."""
+    from patching.curves.surface_vectors import tensor_limit
+
+    rng = np.random.default_rng(3)
+    for degrees in ((3, 3), (5, 2), (4, 7)):
+        m, n = degrees[0] + 5, degrees[1] + 4
+        P = rng.normal(size=(m, n, 3))
+        S = tensor_limit(P, degrees)
+        (a, b), (c, e) = S.domain
+        assert (a, b, c, e) == (0.0, m - degrees[0], 0.0, n - degrees[1])
+        u, v = np.linspace(a, b, 23), np.linspace(c, e, 19)
+        ref = _uniform_reference(P, degrees, u, v)
+        assert np.abs(S.evaluate(u, v) - ref).max() < 1e-12
+
+
+@pytest.mark.parametrize("closed", [(False, False), (True, False), (False, True)])
+def test_tensor_limit_is_the_tensor_product_of_the_curve_limits(closed):
+    """[KSD] eq. (15) exactly: surface - plain surface = sum of B_i(u) C_j(v) U + C_i(u) B_j(v) V
+    + C_i(u) C_j(v) X, each factor the curve scheme's limit (Curve.evaluate on a unit polygon
+    or a unit vector), for U, V, X vectors of sharpness inf, 1.5, 2; and the exact limit equals
+    the limit of the net refined by tensor_operators through the vectors' ceil(s) steps."""
+    from patching.curves.surface_vectors import tensor_limit
+
+    rng = np.random.default_rng(5)
+    (du, dv), (nu, nv) = (3, 4), (12, 13)
+    P = rng.normal(size=(nu, nv, 3))
+    vecs = [("U", 5, 6, math.inf), ("V", 6, 5, 1.5), ("X", 4, 8, 2.0)]
+    vals = rng.normal(size=(3, 3))
+    S = tensor_limit(P, (du, dv), closed, vecs, vals)
+    plain = tensor_limit(P, (du, dv), closed)
+    (a, b), (c, e) = S.domain
+    assert plain.domain == S.domain
+    u, v = np.linspace(a, b, 41), np.linspace(c, e, 37)
+
+    def basis(n, d, cl, i, t):
+        z = np.zeros((n, 2))
+        z[i, 0] = 1.0
+        return Curve(z, d, cl).evaluate(t)[:, 0]
+
+    def crease(n, d, cl, i, s, t):
+        return Curve(np.zeros((n, 2)), d, cl, vectors={i: (np.array([1.0, 0.0]), s)}).evaluate(t)[:, 0]
+
+    expect = plain.evaluate(u, v)
+    for (kind, i, j, s), w in zip(vecs, vals):
+        fu = basis(nu, du, closed[0], i, u) if kind == "U" else crease(nu, du, closed[0], i, s, u)
+        fv = basis(nv, dv, closed[1], j, v) if kind == "V" else crease(nv, dv, closed[1], j, s, v)
+        expect = expect + np.einsum("i,j,k->ijk", fu, fv, w)
+    got = S.evaluate(u, v)
+    assert np.abs(got - expect).max() < 1e-12
+    assert np.abs(got - plain.evaluate(u, v)).max() > 0.05
+    # the U vector is infinitely sharp: a d_v-fold knot (C0 crease line) in v, none in u
+    assert np.unique(S.knots_v, return_counts=True)[1][1:-1].max() == dv
+    # against refinement: 2 steps (the finite vectors used up), then the refined net's limit
+    # plus the infinitely sharp vector (still a vector after the steps)
+    A, C, (mu, mv) = tensor_operators((nu, nv), (du, dv), closed, vecs[1:], 2)
+    R = (A @ P.reshape(-1, 3) + C @ vals[1:]).reshape(mu, mv, 3)
+    fine = tensor_limit(R, (du, dv), closed)
+    U = tensor_limit(np.zeros_like(P), (du, dv), closed, vecs[:1], vals[:1])
+    assert np.abs(fine.evaluate(4 * u, 4 * v) + U.evaluate(u, v) - got).max() < 1e-12
+
+
+def test_tensor_limit_exports_as_an_exact_step_b_spline_face(tmp_path):
+    """The B-spline face written to STEP reads back (one face, a B-spline surface) with the
+    same poles count and the same points as the exact limit, to 1e-12 of the size."""
+    pytest.importorskip("OCP")
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.GeomAdaptor import GeomAdaptor_Surface
+    from OCP.GeomAbs import GeomAbs_BSplineSurface
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+
+    from export import read_step
+    from export.curves import to_face, write_surface_step
+    from export.ocp_compat import TopoDS
+    from patching.curves.surface_vectors import tensor_limit
+
+    rng = np.random.default_rng(7)
+    P = rng.normal(size=(11, 10, 3)) * 10
+    S = tensor_limit(P, (5, 3), (False, False), [("U", 5, 5, math.inf), ("X", 4, 4, 1.0)], rng.normal(size=(2, 3)))
+    assert BRepCheck_Analyzer(to_face(S)).IsValid()
+    path = write_surface_step(S, tmp_path / "s.step")
+    explorer = TopExp_Explorer(read_step(path), TopAbs_FACE)
+    faces = []
+    while explorer.More():
+        faces.append(TopoDS.Face_s(explorer.Current()))
+        explorer.Next()
+    assert len(faces) == 1
+    surf = BRep_Tool.Surface_s(faces[0])
+    adaptor = GeomAdaptor_Surface(surf)
+    assert adaptor.GetType() == GeomAbs_BSplineSurface
+    bs = adaptor.BSpline()
+    assert (bs.NbUPoles(), bs.NbVPoles()) == S.poles.shape[:2]
+    assert (bs.UDegree(), bs.VDegree()) == (5, 3)
+    (a, b), (c, e) = S.domain
+    u, v = np.linspace(a, b, 13), np.linspace(c, e, 11)
+    ref = S.evaluate(u, v)
+    got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
+    size = np.abs(P).max()
+    assert np.abs(got - ref).max() < 1e-12 * size

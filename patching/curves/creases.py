@@ -20,9 +20,14 @@ Structure imposed (the relaxed conditions of [KSD] sec. 3.2.1, generalised to an
   entries of (4), (5), (9)).
 - The natural configuration at the crease is linear: every N_j has ``N_j^(2k)(0) = 0`` for
   k = 1 .. floor((d - 1) / 2).  For odd d this follows from the structure (the spectra quoted
-  after (5) and (9): 1, 1/2, 1/8, 1/32, ...); for d = 4 the structure alone leaves a second
-  solution with spectrum 1, 1/2, 1/4, 1/16 (quadratic instead of cubic precision at the
-  crease), and the condition picks the paper's M_4, T_4.
+  after (5) and (9): 1, 1/2, 1/8, 1/32, ...); for d = 4 the structure alone has three
+  solutions (``crease_scheme_solutions``: a second one with spectrum 1, 1/2, 1/4, 1/16,
+  quadratic instead of cubic precision at the crease, and a degenerate one with
+  N_0 = B_0 + B_1 and a negative weight), and the condition picks the paper's M_4, T_4 (the
+  printed display of sec. 3.2.3, reproduced to round-off); for d = 6 the structure has one
+  solution, which satisfies the condition (the paper prints no T_6).  The solution counts
+  were cross-checked by an exact polynomial solve of the same system (sympy, not a
+  dependency: 3 real solutions for d = 4, 1 for d = 6).
 
 For given T entries the equations are linear in M; the few T entries (2 for d = 5, 5 for
 d = 7) are found by a least-squares solve of the remaining residual (variable projection),
@@ -51,7 +56,7 @@ import scipy.sparse as sp
 from .knots import insert_knots_matrix
 
 __all__ = [
-    "CreaseScheme", "crease_scheme", "half_line_subdivision", "ghost_reflection", "modified_quintic_step",
+    "CreaseScheme", "crease_scheme", "crease_scheme_solutions", "half_line_subdivision", "ghost_reflection", "modified_quintic_step",
     "modified_quintic_operator",
 ]
 
@@ -97,13 +102,17 @@ def half_line_subdivision(degree: int, size: int) -> np.ndarray:
     return S[:size, :size]
 
 
-@lru_cache(maxsize=None)
-def crease_scheme(degree: int) -> CreaseScheme:
-    """Solve S M = M T for the crease rule of degree ``degree`` (module docstring)."""
+def _structured_solver(d: int):
+    """The bilinear system S M = M T of the module docstring's structure, as a solver.
+
+    Returns ``solve(r, theta0, natural) -> (M, T, err)``: the T entries of rows 1 .. r-1
+    (``theta``, started from ``theta0``, None = the uniform stencils) by least squares of the
+    remaining residual, M linear in them; ``natural`` adds the linear natural configuration
+    (``D^(2q) N_j(0) = 0``); ``err`` is the largest entry of S M - M T (and of the row sums).
+    """
     from scipy.interpolate import BSpline  # here, not at import: scipy.interpolate and
     from scipy.optimize import least_squares  # scipy.optimize cost every CLI start ~0.5 s
 
-    d = degree
     c = (d - 1) // 2
     J = d - c
     K = 3 * d + 6  # coarse B's in the finite section
@@ -119,8 +128,26 @@ def crease_scheme(degree: int) -> CreaseScheme:
         M0[j + d - J, j] = 1.0
     M0[0, 0] = 1.0
     rows_used, cols_used = K - 2 * d, nN - d  # equations away from the truncation
+    E = np.zeros((len(free), K, nN))
+    for e, (k, j) in enumerate(free):
+        E[e, k, j] = 1.0
+    # partition of unity on the crease block's rows
+    Cs = np.zeros((d, len(free)))
+    for e, (k, j) in enumerate(free):
+        Cs[k, e] = 1.0
+    rs = (1.0 - M0.sum(axis=1))[:d]
+    # linear natural configuration: D^(2q) N_j (0) = 0
+    Dr, Db = [], []
+    for q in range(c):
+        for j in range(J):
+            row = np.zeros(len(free))
+            for e, (k, jj) in enumerate(free):
+                if jj == j:
+                    row[e] = D[q, k]
+            Dr.append(row)
+            Db.append(-D[q] @ M0[:, j])
 
-    def solve(r: int):
+    def solve(r: int, theta0: np.ndarray | None = None, natural: bool = True):
         tfree = [(i, j) for i in range(1, r) for j in range((i + J) // 2 + 1)]
 
         def build_T(theta):
@@ -133,28 +160,11 @@ def crease_scheme(degree: int) -> CreaseScheme:
 
         def fit_M(theta):
             T = build_T(theta)
-            E = np.zeros((len(free), K, nN))
-            for e, (k, j) in enumerate(free):
-                E[e, k, j] = 1.0
             A = np.array([(S @ Ee - Ee @ T)[:rows_used, :cols_used].ravel() for Ee in E]).T
             b = -(S @ M0 - M0 @ T)[:rows_used, :cols_used].ravel()
-            # partition of unity on the crease block's rows
-            Cs = np.zeros((d, len(free)))
-            for e, (k, j) in enumerate(free):
-                Cs[k, e] = 1.0
-            rs = (1.0 - M0.sum(axis=1))[:d]
-            # linear natural configuration: D^(2q) N_j (0) = 0
-            Dr, Db = [], []
-            for q in range(c):
-                for j in range(J):
-                    row = np.zeros(len(free))
-                    for e, (k, jj) in enumerate(free):
-                        if jj == j:
-                            row[e] = D[q, k]
-                    Dr.append(row)
-                    Db.append(-D[q] @ M0[:, j])
-            A2 = np.vstack([A, Cs] + ([np.array(Dr)] if Dr else []))
-            b2 = np.r_[b, rs, Db]
+            extra = [np.array(Dr)] if (Dr and natural) else []
+            A2 = np.vstack([A, Cs] + extra)
+            b2 = np.r_[b, rs, Db] if extra else np.r_[b, rs]
             mu = np.linalg.lstsq(A2, b2, rcond=None)[0]
             M = M0.copy()
             for (k, j), v in zip(free, mu):
@@ -165,7 +175,8 @@ def crease_scheme(degree: int) -> CreaseScheme:
             sums = [sum(v for (i, _), v in zip(tfree, theta) if i == ii) - 1.0 for ii in range(1, r)]
             return np.r_[fit_M(theta)[2], sums]
 
-        theta0 = np.array([_regular(d, J, i, j) for (i, j) in tfree])
+        if theta0 is None:
+            theta0 = np.array([_regular(d, J, i, j) for (i, j) in tfree])
         if len(theta0):
             theta = least_squares(residual, theta0, xtol=1e-15, ftol=1e-15, gtol=1e-15).x
         else:
@@ -173,12 +184,6 @@ def crease_scheme(degree: int) -> CreaseScheme:
         M, T, res = fit_M(theta)
         err = float(np.abs(S @ M - M @ T)[:rows_used, :cols_used].max())
         err = max(err, float(np.abs(residual(theta)).max()) if len(theta) else err)
-        return M, T, err
-
-    for r in (J - 1, J):
-        if r < 1:
-            continue
-        M, T, err = solve(r)
         if err < SOLVE_TOLERANCE:
             # The solution is rational: snap to the nearest fractions of small denominator
             # and keep them if they solve S M = M T better (round-off 1e-14 -> 1e-16).
@@ -186,8 +191,57 @@ def crease_scheme(degree: int) -> CreaseScheme:
             err_s = float(np.abs(S @ Ms - Ms @ Ts)[:rows_used, :cols_used].max())
             if err_s <= err:
                 M, T, err = Ms, Ts, err_s
+        return M, T, err
+
+    solve.n_theta = lambda r: sum((i + J) // 2 + 1 for i in range(1, r))
+    return solve, J
+
+
+@lru_cache(maxsize=None)
+def crease_scheme(degree: int) -> CreaseScheme:
+    """Solve S M = M T for the crease rule of degree ``degree`` (module docstring)."""
+    d = degree
+    solve, J = _structured_solver(d)
+    for r in (J - 1, J):
+        if r < 1:
+            continue
+        M, T, err = solve(r)
+        if err < SOLVE_TOLERANCE:
             return CreaseScheme(d, J, r, M[:d, :J].copy(), T[:r, : J + 2].copy(), M, T, err)
     raise RuntimeError(f"no crease scheme of degree {d} solves S M = M T (residual {err:.2e})")
+
+
+@lru_cache(maxsize=None)
+def crease_scheme_solutions(degree: int, starts: int = 40) -> tuple[CreaseScheme, ...]:
+    """Every crease rule of the module docstring's structure *without* the natural
+    configuration condition that ``crease_scheme`` adds: the distinct solutions of S M = M T
+    found from the uniform stencils and ``starts`` random starts (fixed seed), r = J rows.
+
+    For d = 4 these are three ([KSD]'s T_4, rows (10, 5, 1)/16 and (2, 9, 5)/16, spectrum
+    1, 1/2, 1/8, 1/16; a second one, rows (60, 50, 2)/112 and (12, 66, 34)/112, spectrum 1, 1/2,
+    1/4, 1/16; and a degenerate one with N_0 = B_0 + B_1 and a negative weight, rows
+    (15, 5/4, -1/4)/16, (3, 33/4, 19/4)/16); for d = 6 one (the ``crease_scheme``).  The
+    counts were cross-checked by an exact polynomial solve of the same system (sympy, outside
+    the package: 3 real solutions for d = 4, 1 for d = 6).  Used to show that the
+    non-monotone vertex motion of even degrees (``runs.vertex_limit_weights``) is not the
+    choice of one solution among several (docs/curves.md).
+    """
+    d = degree
+    solve, J = _structured_solver(d)
+    rng = np.random.default_rng(20141)
+    found: list[CreaseScheme] = []
+    nt = solve.n_theta(J)
+    base = None
+    for a in range(starts + 1):
+        theta0 = base if a == 0 else rng.uniform(-0.5, 1.5, nt)
+        M, T, err = solve(J, theta0, natural=False)
+        if err >= SOLVE_TOLERANCE:
+            continue
+        Tr = T[:J, : J + 2]
+        if any(np.abs(f.T - Tr).max() < 1e-9 for f in found):
+            continue
+        found.append(CreaseScheme(d, J, J, M[:d, :J].copy(), Tr.copy(), M, T, err))
+    return tuple(found)
 
 
 def _snap(A: np.ndarray) -> np.ndarray:

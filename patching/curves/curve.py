@@ -14,9 +14,13 @@ Rules for the tags:
 
 - an end vertex of an open polygon with sharpness > 0 is a sharp end (the curve starts
   there, [KSD] sec. 3.1 end conditions); without a tag the curve covers the n - d full spans;
-- fractional sharpness of interior vertices needs an odd degree (``runs.semi_sharp_step``);
-  for even d the sharp and smooth steps give different point counts (the sharp vertex stays
-  one point on a knot, a smooth one splits in two), so there is no pair of points to blend;
+- fractional sharpness: odd d blends the points of each step (``runs.semi_sharp_step``); even
+  d has no per-step blend (the sharp and smooth steps give different point counts: the sharp
+  vertex stays one point on a knot, a smooth one splits in two), so the step where the
+  sharpness is fractional blends the two exact limits on one knot structure
+  (``runs.fractional_even_limit``).  That step must be the curve's last (every fractional
+  sharpness has the largest ceil(s)), and ``refine`` cannot go through it (there is no
+  polygon after it); ``limit`` and the B-spline writers can;
 - corners and control vectors are not mixed on one curve (the paper treats them as two
   alternative schemes; the interaction of a crease function with a crease rule is not
   specified).
@@ -32,7 +36,7 @@ import scipy.sparse as sp
 
 from ..errors import MeshError, TagError, UnsupportedError
 from .control_vectors import crease_parameter, vector_limit, vector_step
-from .runs import limit_operator, semi_sharp_step
+from .runs import fractional_even_limit, limit_operator, semi_sharp_step
 from .uniform import MAX_DEGREE, MIN_DEGREE
 
 __all__ = ["Curve", "BSplineCurve", "ModifiedQuinticCurve", "ModifiedQuinticFit", "modified_quintic_limit"]
@@ -150,9 +154,16 @@ class Curve:
             raise UnsupportedError("corners and control vectors on one curve are not supported")
         frac = np.flatnonzero((interior > 0) & (interior < math.inf) & (interior != np.floor(interior)))
         if d % 2 == 0 and len(frac):
-            raise UnsupportedError(
-                f"fractional sharpness {interior[frac[0]]:g} needs an odd degree, not {d}", f"vertex {int(frac[0])}"
-            )
+            # even d: the fractional step has no polygon, only an exact limit, so it must be the
+            # last step (runs.fractional_even_limit)
+            L = int(math.ceil(max(x for x in interior if 0 < x < math.inf)))
+            early = [int(v) for v in frac if math.ceil(interior[v]) < L]
+            if early:
+                v = early[0]
+                raise UnsupportedError(
+                    f"fractional sharpness {interior[v]:g} at even degree {d} must be the largest sharpness's level "
+                    f"(ceil {math.ceil(interior[v])} < {L}): its blend is exact only as the last step", f"vertex {v}"
+                )
         if not closed and n <= d and not (s[0] > 0 or s[-1] > 0):
             raise MeshError(f"an open polygon of degree {d} without sharp ends needs more than {d} vertices, not {n}")
 
@@ -174,6 +185,12 @@ class Curve:
 
     def refine(self, k: int = 1) -> "Curve":
         """The curve after ``k`` subdivision steps (same limit; sharpness decremented)."""
+        if self._fractional_even and int(k) >= self.steps_to_exact:
+            L = self.steps_to_exact
+            raise UnsupportedError(
+                f"at even degree {self.degree} step {L} blends two limits (fractional sharpness) and leaves no polygon: "
+                f"take at most {L - 1} steps (-n {L - 1}), or write the exact B-spline (STEP, IGES, DXF)"
+            )
         c = self
         for _ in range(int(k)):
             A, C, H, P2, s2, vstate = c._step()
@@ -207,9 +224,18 @@ class Curve:
         finite = [x for x in np.r_[self.sharpness, self._vsharp] if 0 < x < math.inf]
         return int(math.ceil(max(finite))) if finite else 0
 
+    @property
+    def _fractional_even(self) -> bool:
+        s = self.sharpness
+        return self.degree % 2 == 0 and bool(np.any((s > 0) & np.isfinite(s) & (s != np.floor(s))))
+
     def limit_operator(self) -> tuple[np.ndarray, sp.csr_matrix, sp.csr_matrix]:
         """``(knots, W, E)``: the exact limit's poles = W @ points + E @ vectors (sparse)."""
         L = self.steps_to_exact
+        if self._fractional_even:  # the last step blends two limits (runs.fractional_even_limit)
+            A, C, H, c = self._run(L - 1)
+            knots, W = fractional_even_limit(len(c.points), c.degree, c.closed, c.sharpness)
+            return knots / 2.0**L, (W @ A).tocsr(), sp.csr_matrix(W @ C)
         A, C, H, c = self._run(L)
         n = len(c.points)
         if len(c._vparams):

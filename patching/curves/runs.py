@@ -47,6 +47,7 @@ __all__ = [
     "semi_sharp_step",
     "limit_operator",
     "vertex_limit_weights",
+    "fractional_even_limit",
 ]
 
 CREASE = "crease"
@@ -289,9 +290,10 @@ def semi_sharp_step(
     Why this rule for every odd d ([KSD] states the blend for cubics only): all later steps are
     smooth in both branches, so by linearity the limit is ``(1 - f) c_floor(s) + f c_ceil(s)``,
     the linear interpolation of the two neighbouring integer-sharpness limits; it adds no
-    motion of its own (``vertex_limit_weights``, docs/curves.md).  Fractional blending needs
+    motion of its own (``vertex_limit_weights``, docs/curves.md).  A per-step blend needs
     an odd degree: for even d a sharp step gives 2n - 1 points where a smooth one gives 2n (the
-    vertex stays one point instead of splitting in two), so there is no pair to blend.
+    vertex stays one point instead of splitting in two), so there is no pair of points to blend;
+    even d blends the two limits instead (``fractional_even_limit``), with no polygon after.
     """
     s = np.asarray(sharpness, dtype=np.float64)
     hard = s >= 1.0
@@ -300,7 +302,9 @@ def semi_sharp_step(
     A = base
     if len(frac):
         if d % 2 == 0:
-            raise UnsupportedError(f"fractional sharpness needs an odd degree, not {d}", f"vertex {int(frac[0])}")
+            raise UnsupportedError(
+                f"a step with fractional sharpness has no polygon at even degree {d} (only the exact limit: "
+                "STEP, IGES, DXF)", f"vertex {int(frac[0])}")
         clusters: list[list[int]] = [[int(frac[0])]]
         for v in frac[1:]:
             if v - clusters[-1][-1] <= d + 2:
@@ -361,7 +365,7 @@ def limit_operator(n: int, d: int, closed: bool, sharp: np.ndarray) -> tuple[np.
     return np.concatenate(knots_all), sp.csr_matrix(np.vstack(rows))
 
 
-def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
+def vertex_limit_weights(degree: int, sharpness: float, scheme=None) -> np.ndarray:
     """The limit point of an interior semi-sharp vertex as ``P_v + sum_i w_i (d+_i + d-_i)``.
 
     ``d+-_i = P_(v +- i) - P_v`` (i = 1 .. floor(d/2); the vertex alone, no other tag within
@@ -374,6 +378,8 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
     centre of the descendant's span, since the vertex has no knot of its own).  Fractional s
     (odd d only, ``semi_sharp_step``): each blended step is followed by smooth ones only, so
     by linearity the limit is ``(1 - f) w(floor s) + f w(ceil s)``.  s = inf gives w = 0.
+    ``scheme``: another crease rule of the same structure (``creases.crease_scheme_solutions``)
+    in place of ``crease_scheme(d)``, integer s only.
     """
     d = int(degree)
     s = float(sharpness)
@@ -387,7 +393,15 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
     if f and d % 2 == 0:
         raise UnsupportedError(f"fractional sharpness {s:g} needs an odd degree, not {d}")
     K = 4 * d + 8
-    T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
+    if scheme is None:
+        T = run_refinement(K, d, CREASE, FREE, method="assembled").toarray()[:K, :K]
+    else:  # the half-line matrix: the scheme's r rows, then the uniform stencils
+        J = _J(d)
+        i, j = np.mgrid[:K, :K]
+        x = i - 2 * j + J
+        T = np.where((x >= 0) & (x <= d + 1), np.vectorize(comb)(d + 1, np.clip(x, 0, d + 1)) / 2.0**d, 0.0)
+        T[: scheme.r] = 0.0
+        T[: scheme.r, : scheme.T.shape[1]] = scheme.T
     offs = np.arange(1, h + 1)
     knots = np.arange(d + 2, dtype=np.float64)
     from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
@@ -400,3 +414,129 @@ def vertex_limit_weights(degree: int, sharpness: float) -> np.ndarray:
 
     w = at(lo)
     return (1.0 - f) * w + f * at(lo + 1) if f else w
+
+
+def fractional_even_limit(n: int, d: int, closed: bool, sharpness: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+    """Even d: the exact limit of a last step in which vertices have fractional sharpness.
+
+    ``sharpness``: s >= 1 sharp this step (inf stays sharp in the limit), 0 < f < 1 the
+    fractional vertices F, 0 smooth.  Returns ``(knots, W)`` in the units of the refined
+    polygon (poles = W @ P), one clamped B-spline, C^(d-1) except at the infinitely sharp
+    vertices.
+
+    Why there is no per-step blend: a sharp step keeps the vertex as one point (its children
+    are 2n - 1 points on a closed polygon), a smooth one splits it (2n), so the two refined
+    polygons have no common numbering.  What is blended instead: both limits, on one knot
+    structure.  With the vertex smooth this step, the limit c_0 has a knot t0 at the vertex
+    between its two children that it does not need (c_0 is one polynomial over the coarse span
+    [t0 - 1, t0 + 1], fine units), so c_0 is exactly a spline over the fine knots *without* t0:
+    X, the smooth step's result expressed on the mesh of the sharp step (the same number of
+    poles as the sharp step's limit c_1, the same knots except that this central span has
+    length 2 instead of 1; the poles agree away from the vertex).  The blended curve takes the
+    central span of length ``2 - f`` and the poles ``(1 - f) X + f c_1`` near each v in F
+    (the sharp rule's share f, as OpenSubdiv's s P_sharp + (1 - s) P_smooth).  Properties:
+    f -> 0 is c_0 and f -> 1 is c_1 exactly (knots and poles continuous in f); linear in the
+    points; the poles are convex combinations (knot removal of a refined polygon and the
+    crease rows are convex), so the curve lies in the polygon's hull; simple knots, so
+    C^(d-1); only the poles whose support meets the central span change (locality).  The
+    knot t0 is removed by least squares and the removal must be exact (1e-12): a fractional
+    vertex too close to a sharp one (the crease blocks reach it) is refused, and so are two
+    fractional vertices whose windows overlap.
+    """
+    s = np.asarray(sharpness, dtype=np.float64)
+    frac = np.flatnonzero((s > 0) & (s < 1))
+    hard = s >= 1
+    if not len(frac):
+        raise ValueError("no fractional vertex")
+    A0, child0 = step_operator(n, d, closed, hard)
+    A1, child1 = step_operator(n, d, closed, hard | ((s > 0) & (s < 1)))
+    if closed and not (s == math.inf).any():
+        # a periodic limit, clamped at a seam before fine point 0: put the seam at the same
+        # place in both (the first child of the smooth vertex farthest from any tag)
+        tagged = np.flatnonzero(s > 0)
+        dist = np.min(np.abs((np.arange(n)[:, None] - tagged[None, :] + n // 2) % n - n // 2), axis=1)
+        m = int(np.argmax(dist))
+        if dist[m] < d + 2:
+            raise UnsupportedError(f"a closed polygon with fractional sharpness at degree {d} needs a vertex {d + 2} "
+                                   "points from every tag", f"vertex {int(frac[0])}")
+        rolled = []
+        for A in (A0, A1):
+            top = np.flatnonzero(np.isclose(A[:, m].toarray().ravel(), A[:, m].max()))
+            first = int(top[-1] if (len(top) == 2 and top[0] == 0 and top[1] == A.shape[0] - 1) else top[0])
+            order = (np.arange(A.shape[0]) + first) % A.shape[0]
+            rolled.append(A[order])
+        A0, A1 = rolled
+        child0, child1 = {}, {
+            int(v): int(np.flatnonzero(np.isclose(A1[:, int(v)].toarray().ravel(), 1.0))[0]) for v in frac}
+    inf0 = np.zeros(A0.shape[0], dtype=bool)
+    inf1 = np.zeros(A1.shape[0], dtype=bool)
+    for v in np.flatnonzero(s == math.inf):
+        inf0[child0[int(v)]] = True
+        inf1[child1[int(v)]] = True
+    k0, W0 = limit_operator(A0.shape[0], d, closed, inf0)
+    k1, W1 = limit_operator(A1.shape[0], d, closed, inf1)
+    C0 = (W0 @ A0).toarray()
+    C1 = (W1 @ A1).toarray()
+
+    def greville(knots, p):
+        return float(np.mean(knots[p + 1 : p + d + 1]))
+
+    W0c, W1c = W0.tocsc(), W1.tocsc()
+    remove, centres1 = [], []
+    for v in frac:
+        v = int(v)
+        # the smooth step's two children of v: the two rows with v's largest weight
+        kids = np.argsort(-A0[:, v].toarray().ravel(), kind="stable")[:2]
+        g = [greville(k0, int(np.argmax(W0c[:, int(c)].toarray().ravel()))) for c in kids]
+        t0 = 0.5 * (g[0] + g[1])
+        if abs(abs(g[0] - g[1]) - 1.0) > 1e-9:
+            raise UnsupportedError(f"fractional sharpness of vertex {v} too close to a sharp vertex or an end at degree {d}",
+                                   f"vertex {v}")
+        remove.append(t0)
+        p1 = int(np.argmax(W1c[:, child1[v]].toarray().ravel()))
+        centres1.append(greville(k1, p1))
+    # c_0 without the knots t0 (exact knot removal, checked)
+    kr = k0.copy()
+    for t0 in remove:
+        hit = np.flatnonzero(np.abs(kr - t0) < 1e-9)
+        if len(hit) != 1:
+            raise UnsupportedError(f"fractional sharpness too close to a sharp vertex at degree {d}", f"vertex {int(frac[0])}")
+        kr = np.delete(kr, hit[0])
+    ins, R = insert_knots_matrix(kr, d, remove, sparse=True)
+    assert np.allclose(ins, k0)
+    from scipy.sparse.linalg import spsolve  # here: only this rule needs it
+
+    X = spsolve((R.T @ R).tocsc(), R.T @ C0)  # R is banded: the normal equations are cheap
+    X = np.asarray(X).reshape(R.shape[1], C0.shape[1])
+    if np.abs(R @ X - C0).max() > 1e-12 or len(kr) != len(k1):
+        raise UnsupportedError(f"fractional sharpness of a vertex too close to a sharp vertex at degree {d}",
+                               f"vertex {int(frac[0])}")
+    shift = np.zeros_like(k1)
+    for c in centres1:
+        shift += k1 > c
+    if np.abs(k1 + shift - kr).max() > 1e-9:
+        raise RuntimeError("the smooth and sharp limits do not share a knot structure")
+    # the poles that differ, each to its fractional vertex (by parameter, on c_1)
+    diff = np.flatnonzero(np.abs(X - C1).max(axis=1) > 1e-14)
+    g1 = np.array([greville(k1, int(p)) for p in diff])
+    owner = np.argmin(np.abs(g1[:, None] - np.array(centres1)[None, :]), axis=1) if len(diff) else np.zeros(0, int)
+    reach = d + 2
+    if len(diff) and np.abs(g1 - np.array(centres1)[owner]).max() > reach:
+        raise RuntimeError("a blended pole far from its fractional vertex")
+    order = np.argsort(centres1)
+    if closed and len(frac) > 1:
+        span = float(k1[-1] - k1[0])
+        gaps = np.diff(np.r_[np.array(centres1)[order], np.array(centres1)[order][0] + span])
+    else:
+        gaps = np.diff(np.array(centres1)[order])
+    if len(gaps) and gaps.min() <= 2 * reach:
+        raise UnsupportedError(f"fractional vertices closer than {reach} spans of the refined polygon at degree {d}",
+                               f"vertex {int(frac[order[int(np.argmin(gaps))]])}")
+    f = s[frac][owner]
+    P = X.copy()
+    P[diff] = (1.0 - f)[:, None] * X[diff] + f[:, None] * C1[diff]
+    knots = k1.copy()
+    for v_idx, c in enumerate(centres1):
+        knots += (1.0 - s[frac[v_idx]]) * (k1 > c)
+    P[np.abs(P) < 1e-15] = 0.0
+    return knots, sp.csr_matrix(P)

@@ -43,6 +43,17 @@ Where [KSD] sec. 5 is silent and what is chosen here:
   (Fig. 10) without a formula.
 - Higher degrees on general meshes (the paper shows only biquintic examples on grids, Fig.
   11) are not built: ``tensor_operators`` covers regular grids of any degree.
+
+The exact limit (``tensor_limit``): on a regular grid the surface is the tensor product of
+the curve limits, so it is one B-spline surface of bi-degree d1 x d2 (exported as a STEP
+B-spline face, ``export.curves.to_face``).  On a general Catmull-Clark mesh there is no such
+form: at an extraordinary vertex the limit has infinitely many polynomial pieces ([Sta98]),
+and the Pixar rules near EVs and semi-sharp creases do not give a finite knot structure
+either; that surface is exported as a refined mesh (``refine``) or through the G1 patch
+construction of ``nupatch build`` (which does not see the vectors).  An open grid has free
+ends (the full spans only, as the curves without end tags), not Catmull-Clark's boundary
+rules: there ``tensor_limit`` and ``refine`` differ near the boundary; on a torus grid they
+are the same surface.
 """
 
 from __future__ import annotations
@@ -59,11 +70,12 @@ from ..subdivision.catmark import subdivision_operator
 from ..topology.tables import Topology
 from .control_vectors import crease_function
 from .curve import Curve
+from .knots import insert_knots_matrix
 from .uniform import uniform_mask
 
 __all__ = [
     "SurfaceVector", "LINE", "CROSS", "check_vectors", "vector_step", "refine", "operators", "tensor_operators",
-    "parse_vector_tags", "format_vector_tags",
+    "parse_vector_tags", "format_vector_tags", "BSplineSurface", "tensor_limit_operator", "tensor_limit",
 ]
 
 LINE = "line"
@@ -331,3 +343,123 @@ def format_vector_tags(vectors: list[SurfaceVector], values) -> str:
         ids = f"{vec.vertex} {vec.toward}" if vec.kind == LINE else f"{vec.vertex}"
         lines.append(f"t controlvector {2 if vec.kind == LINE else 1}/4/0 {ids} {x!r} {y!r} {z!r} {vec.sharpness!r}")
     return "".join(line + "\n" for line in lines)
+
+
+@dataclass(frozen=True)
+class BSplineSurface:
+    """A clamped tensor-product B-spline: ``poles`` (nu, nv, dim), ``knots_u`` (nu + du + 1,),
+    ``knots_v`` (nv + dv + 1,), ``degrees`` (du, dv); u runs along the grid's first index."""
+
+    knots_u: np.ndarray
+    knots_v: np.ndarray
+    poles: np.ndarray
+    degrees: tuple[int, int]
+
+    @property
+    def domain(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (float(self.knots_u[0]), float(self.knots_u[-1])), (float(self.knots_v[0]), float(self.knots_v[-1]))
+
+    def evaluate(self, u, v) -> np.ndarray:
+        """The points at the grid ``u x v`` (1-D parameter arrays): (len(u), len(v), dim)."""
+        from scipy.interpolate import BSpline  # here: scipy.interpolate costs every CLI start ~0.5 s
+
+        (a, b), (c, e) = self.domain
+        Bu = BSpline.design_matrix(np.clip(np.atleast_1d(u), a, b), self.knots_u, self.degrees[0]).toarray()
+        Bv = BSpline.design_matrix(np.clip(np.atleast_1d(v), c, e), self.knots_v, self.degrees[1]).toarray()
+        return np.einsum("ia,abk,jb->ijk", Bu, self.poles, Bv)
+
+
+def _merge_knots(vectors: list[np.ndarray]) -> np.ndarray:
+    """The smallest knot vector containing each of ``vectors`` (each value at its largest
+    multiplicity); all share the same clamped ends."""
+    mult: dict[float, int] = {}
+    for t in vectors:
+        values, counts = np.unique(t, return_counts=True)
+        for x, c in zip(values.tolist(), counts.tolist()):
+            mult[x] = max(mult.get(x, 0), c)
+    return np.array([x for x in sorted(mult) for _ in range(mult[x])], dtype=np.float64)
+
+
+def _onto(knots: np.ndarray, d: int, target: np.ndarray) -> sp.csr_matrix:
+    """Knot insertion from ``knots`` to the superset ``target``: coefficients on ``target``."""
+    values, counts = np.unique(knots, return_counts=True)
+    have = dict(zip(values.tolist(), counts.tolist()))
+    tv, tc = np.unique(target, return_counts=True)
+    new = [x for x, c in zip(tv.tolist(), tc.tolist()) for _ in range(c - have.get(x, 0))]
+    out, A = insert_knots_matrix(knots, d, new, sparse=True)
+    assert np.array_equal(out, target)
+    return A
+
+
+def tensor_limit_operator(
+    shape: tuple[int, int],
+    degrees: tuple[int, int],
+    closed: tuple[bool, bool],
+    vectors: list[tuple[str, int, int, float]],
+) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix, sp.csr_matrix, tuple[int, int]]:
+    """The exact limit of ``tensor_operators``' surface: ``(knots_u, knots_v, W, E, poles_shape)``
+    with poles (row-major, pole (a, b) at row ``a * Nv + b``) = W @ P + E @ W_vectors.
+
+    Each direction's factors are the curve limits (``Curve.limit_operator``): the plain curve
+    of the grid's lines for B_i, and one curve with the single vector for each C_j (its
+    crease function after its own ceil(s) steps, d-fold knot if s = inf).  Their knot vectors
+    differ (the crease's knots, the refined levels), so each factor is brought onto the union
+    of them by knot insertion (exact) before the Kronecker products: B_i(u) C_j(v) U_ij is
+    ``kron(Wu e_i, Ev_j)``, and so on.  Built from the grid's size, degrees and tags only.
+    The surface is C0 along the crease lines of infinitely sharp vectors and C^(d-1) elsewhere.
+    """
+    (nu, nv), (du, dv), (cu, cv) = shape, degrees, closed
+    zu, zv = np.zeros((nu, 2)), np.zeros((nv, 2))
+
+    def plain(z, d, c):
+        knots, W, _ = Curve(z, d, c).limit_operator()
+        return knots, W
+
+    def crease(z, d, c, i, s):
+        knots, _, E = Curve(z, d, c, vectors={i: (np.zeros(2), s)}).limit_operator()
+        return knots, E
+
+    facs = []  # per vector: ((knots_u, column_u), (knots_v, column_v))
+    pu, pv = plain(zu, du, cu), plain(zv, dv, cv)
+    for kind, i, j, s in vectors:
+        if kind == "U":
+            facs.append(((pu[0], pu[1][:, [i]]), crease(zv, dv, cv, j, s)))
+        elif kind == "V":
+            facs.append((crease(zu, du, cu, i, s), (pv[0], pv[1][:, [j]])))
+        elif kind == "X":
+            facs.append((crease(zu, du, cu, i, s), crease(zv, dv, cv, j, s)))
+        else:
+            raise UnsupportedError(f"control vector kind {kind!r} is not U, V or X")
+    ku = _merge_knots([pu[0]] + [f[0][0] for f in facs])
+    kv = _merge_knots([pv[0]] + [f[1][0] for f in facs])
+    Ru, Rv = _onto(pu[0], du, ku), _onto(pv[0], dv, kv)
+    W = sp.kron(Ru @ pu[1], Rv @ pv[1]).tocsr()
+    cols = [
+        sp.kron(_onto(a[0], du, ku) @ sp.csr_matrix(a[1]), _onto(b[0], dv, kv) @ sp.csr_matrix(b[1]))
+        for a, b in facs
+    ]
+    E = sp.hstack(cols).tocsr() if cols else sp.csr_matrix((W.shape[0], 0))
+    return ku, kv, W, E, (len(ku) - du - 1, len(kv) - dv - 1)
+
+
+def tensor_limit(
+    points,
+    degrees: tuple[int, int],
+    closed: tuple[bool, bool] = (False, False),
+    vectors: list[tuple[str, int, int, float]] | None = None,
+    values=None,
+) -> BSplineSurface:
+    """[KSD] eq. (15) on a regular grid, exactly: the B-spline surface of ``tensor_limit_operator``.
+
+    ``points``: (m, n, 3) grid (u along the first index); ``vectors`` as in
+    ``tensor_operators`` with ``values`` (k, 3) one row per vector.
+    """
+    P = np.asarray(points, dtype=np.float64)
+    if P.ndim != 3:
+        raise UnsupportedError(f"a regular grid of points is an (m, n, 3) array, not {P.shape}")
+    m, n, dim = P.shape
+    vectors = list(vectors or [])
+    V = np.asarray(values if values is not None else np.zeros((0, dim)), dtype=np.float64).reshape(len(vectors), dim)
+    ku, kv, W, E, (Nu, Nv) = tensor_limit_operator((m, n), degrees, closed, vectors)
+    poles = W @ P.reshape(m * n, dim) + E @ V
+    return BSplineSurface(ku, kv, np.asarray(poles).reshape(Nu, Nv, dim), (int(degrees[0]), int(degrees[1])))
