@@ -37,8 +37,9 @@ sharpness 1, else the s-blend) and Chaikin child sharpness (3/4 s plus 1/4 of th
 other sharp edges, infinite ones included, minus 1) emulated here (``hbr_step``): loop_chaikin1
 then agrees to 1.4e-7 (float32) at every level.  nupatch follows Far, which it equals
 (``benchmarks/osd_far_reference.py``): Far is the library the issue names and OpenSubdiv's
-current one, Hbr its deprecated predecessor whose baselines far_regression only checks within
-a tolerance.
+current one, and OpenSubdiv's own Far-vs-Hbr test skips these shapes: ``regression/
+far_regression/far_regression.cpp`` ``areVerticesCompatibleWithHbr`` lists "Chaikin creasing --
+Hbr known to be incorrect" among the known incompatibilities (others within 1e-6).
 """
 
 from __future__ import annotations
