@@ -18,7 +18,8 @@ seven such edges (all edges at three of its faces but one), and a tetrahedron wi
   2, as the figure) after 4 and 5 steps of the tetrahedron with three edges of sharpness 4
   (Loop) and of a cube with a loop of four such edges around its top face (Catmull-Clark):
   after 4 steps the edges' vertices have b = 0, after 5 (the edges ran out at level 4) the
-  extraordinary ones and their 1-rings are blended; and the zebra of N_B after 5 steps.
+  extraordinary ones and their 1-rings are blended (close-ups of one crease corner at both
+  levels, face edges drawn); and the zebra of N_B after 5 steps.
 * shading_darts.png ([ZBK] Figs. 5, 12, 13): the tetrahedron with two sharp edges (Loop) and
   the cube with three (a path: its two ends are darts; Catmull-Clark), 4 steps, blend weights
   and zebra of N_B with darts treated as smooth vertices (the default, [ZBK] sec. 5) and as
@@ -85,9 +86,12 @@ def _png(mesh, scheme, levels, normals, variant="b", mode="zebra", darts="smooth
         return plt.imread(path)
 
 
-def _blend_panel(ax, mesh, scheme, levels, variant, blend_level=1, darts="smooth", view=(AZIMUTH, ELEVATION)):
+def _blend_panel(ax, mesh, scheme, levels, variant, blend_level=1, darts="smooth", view=(AZIMUTH, ELEVATION),
+                 zoom=None):
     """Faces coloured by their corners' mean b, seen from the renderer's camera (parallel
-    projection, azimuth and elevation of ``export.render``), drawn back to front."""
+    projection, azimuth and elevation of ``export.render``), drawn back to front.  zoom:
+    (control vertex, half-width as a share of the mesh's size): a close-up around the refined
+    vertex nearest to that control vertex, face edges drawn."""
     op = shading_operator(mesh, levels, scheme, "shading", variant, blend_level=blend_level, darts=darts)
     out = op.evaluate(mesh.vertices)
     az, el = np.radians(view[0]), np.radians(view[1])
@@ -99,8 +103,15 @@ def _blend_panel(ax, mesh, scheme, levels, variant, blend_level=1, darts="smooth
     order = np.argsort((p @ to_eye).mean(axis=1))
     xy = np.stack([p @ right, p @ up], axis=-1)[order]
     colours = plt.cm.coolwarm(op.blend[out.faces].mean(axis=1))[order]
-    ax.add_collection(PolyCollection(xy, facecolors=colours, edgecolors="none"))
+    ax.add_collection(PolyCollection(xy, facecolors=colours, edgecolors="none" if zoom is None else "k",
+                                     linewidths=0.2))
     ax.autoscale()
+    if zoom is not None:
+        target = mesh.vertices[zoom[0]]
+        c = out.points[np.argmin(np.linalg.norm(out.points - target, axis=1))]
+        half = zoom[1] * float(np.ptp(out.points, axis=0).max())
+        ax.set_xlim(c @ right - half, c @ right + half)
+        ax.set_ylim(c @ up - half, c @ up + half)
     ax.set_aspect("equal")
     ax.set_axis_off()
 
@@ -155,9 +166,13 @@ def main() -> None:
     tet = tetrahedron([(0, 1), (1, 2), (0, 2)])
     rows, titles = [], []
     for scheme, m in (("loop", tet), ("catmark", cross_loop)) if _want("shading_semi_sharp_decay.png") else ():
+        corner = 0 if scheme == "loop" else 5  # a crease corner in view
         rows.append([("blend", m, scheme, 4, "b", 2), ("blend", m, scheme, 5, "b", 2),
+                     ("blend", m, scheme, 4, "b", 2, "smooth", (AZIMUTH, ELEVATION), (corner, 0.06)),
+                     ("blend", m, scheme, 5, "b", 2, "smooth", (AZIMUTH, ELEVATION), (corner, 0.06)),
                      ("png", _png(m, scheme, 5, "shading"))])
         titles.append([f"{scheme}: b after 4 steps (edges sharp)", f"{scheme}: b after 5 steps (edges smooth)",
+                       f"close-up of corner {corner}, 4 steps", f"close-up of corner {corner}, 5 steps",
                        f"{scheme}: N_B after 5 steps, zebra"])
     if rows:
         _figure("shading_semi_sharp_decay.png", rows, titles)
