@@ -50,7 +50,8 @@ def _flat(result: SubdividedMesh) -> SubdividedMesh:
 
 
 def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "loop", normals: str = "shading",
-                       variant: str = "b", rules: str = "opensubdiv", crease_method: str = "uniform") -> Sampled:
+                       variant: str = "b", rules: str = "opensubdiv", crease_method: str = "uniform",
+                       darts: str = "smooth") -> Sampled:
     """The refined mesh as ``export.render.Sampled`` triangles with the chosen normals (module
     docstring); curvatures are zero (not drawn), the overlay lines are the control mesh's edges."""
     if normals not in NORMALS:
@@ -58,7 +59,7 @@ def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "l
     from patching.shading import shading_operator  # not at import: the render parser is built on every start
 
     op = shading_operator(mesh, levels, scheme, "limit" if normals == "flat" else normals, variant,
-                          rules=rules, crease_method=crease_method)
+                          rules=rules, crease_method=crease_method, darts=darts)
     result = op.evaluate(mesh.vertices)
     if normals == "flat":
         result = _flat(result)
@@ -71,14 +72,17 @@ def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "l
 def render_subdivided(mesh: patching.ControlMesh, path: str | os.PathLike, levels: int, scheme: str = "loop",
                       normals: str = "shading", variant: str = "b", mode: str = "shaded",
                       size: tuple[int, int] = (800, 600), overlay: bool = False, renderer: str = "auto",
-                      rules: str = "opensubdiv", crease_method: str = "uniform") -> str:
+                      rules: str = "opensubdiv", crease_method: str = "uniform", darts: str = "smooth",
+                      picture=None) -> str:
     """Draw ``mesh`` refined ``levels`` steps with ``normals`` to the PNG ``path`` (atomically);
-    mode "shaded" or "zebra".  Returns the renderer used ("vtk" or "matplotlib")."""
+    mode "shaded" or "zebra"; darts as ``patching.shading.shading_operator``; picture an
+    ``export.render.Picture`` (view, azimuth, elevation; default the iso view).  Returns the
+    renderer used ("vtk" or "matplotlib")."""
     if mode not in ("shaded", "zebra"):
         raise NupatchError(f"a subdivided mesh is drawn shaded or with --zebra, not '{mode}'", "render")
-    sampled = subdivided_sampled(mesh, levels, scheme, normals, variant, rules, crease_method)
+    sampled = subdivided_sampled(mesh, levels, scheme, normals, variant, rules, crease_method, darts)
     with atomic_output(path) as tmp:
-        return render(sampled, tmp, mode, size, overlay=overlay, renderer=renderer)
+        return render(sampled, tmp, mode, size, overlay=overlay, renderer=renderer, picture=picture)
 
 
 def run_render_subdivided(args: argparse.Namespace, size: tuple[int, int], progress=None) -> int:

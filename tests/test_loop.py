@@ -5,6 +5,7 @@ corners and boundaries; limit points and normals against the 1-ring refined on i
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -100,6 +101,59 @@ def random_tagged_mesh(base, data, mode):
     creases = {e: s for e in edges if (s := data.draw(SHARPNESS)) > 0}
     corners = {i: s for i in range(len(v)) if rng.random() < 0.15 and (s := data.draw(SHARPNESS)) > 0}
     return patching.from_arrays(v, f, creases=creases, corners=corners, interpolate_boundary=mode)
+
+
+DATA = Path(__file__).parent / "data"
+
+
+def _mixed_transitions(mesh, method):
+    """Vertices of ``mesh`` whose crease/corner rule turns smooth-ward in this step through two
+    or more halves of different parent sharpness that all turn smooth ([OSD]
+    ``ComputeFractionalWeightAtVertex`` averaging unequal values)."""
+    from patching.loop.refine import LoopLevel
+
+    L = LoopLevel.of(mesh, method)
+    found = []
+    for v in np.flatnonzero(L.rule != L.child_rule):
+        turning = [L.es[e] for e in range(L.topo.n_edges) for k in (0, 1)
+                   if L.topo.edges[e, k] == v and L.es[e] > 0 and L.child_es[e, k] <= 0]
+        if len(turning) >= 2 and max(turning) - min(turning) > 1e-9:
+            found.append(int(v))
+    return found
+
+
+def test_chaikin_mixed_sharpness_vertex():
+    """Chaikin creasing where a sharpness-1 and a sharpness-0.25 half meet and both turn smooth:
+    [OSD] Far (``Crease::SubdivideEdgeSharpnessAtVertex`` gives both children 0, so the child
+    rule is smooth) blends the crease mask with weight mean(1, 0.25) = 0.625; the legacy Hbr
+    takes 0.25 (the mean of the sharpness values below 1 only; benchmarks/osd_hbr_baseline.py).
+    Positions equal the reference for 3 levels, and the vertex's row shows Far's weight."""
+    from patching.loop.rules import loop_beta
+
+    v, f = _fan(7)
+    mesh = patching.from_arrays(v, f, creases={(0, 1): 1.0, (0, 4): 0.25})
+    assert _mixed_transitions(mesh, "chaikin") == [0]
+    _compare(mesh, 3, "chaikin")
+    S, _ = loop_operator(mesh, "chaikin")
+    smooth_self = 1.0 - 7 * float(loop_beta(7))
+    w = (S[0, 0] - smooth_self) / (0.75 - smooth_self)
+    assert abs(w - 0.625) < 1e-14
+    assert abs(S[0, 1] - (0.625 * 0.125 + 0.375 * float(loop_beta(7)))) < 1e-14
+    assert abs(S[0, 2] - 0.375 * float(loop_beta(7))) < 1e-14
+
+
+def test_chaikin_regression_shape():
+    """[OSD]'s loop_chaikin1 (integer creases 1-5 meeting at corners, Chaikin creasing): from
+    level 1 on it has vertices where unequal halves turn smooth together (the ones where the Hbr
+    baseline differs by 8e-3); equal to the reference for 3 levels (compiled Far agrees to
+    5.6e-17 at 4 levels with its float32 weights, benchmarks/osd_far_reference.py)."""
+    mesh = patching.read_mesh(DATA / "loop_chaikin1.obj")
+    cur, mixed = mesh, []
+    for _ in range(3):
+        mixed.append(len(_mixed_transitions(cur, "chaikin")))
+        cur = loop_operator(cur, "chaikin")[1]
+    assert mixed[0] == 0 and min(mixed[1:]) >= 4, mixed
+    _compare(mesh, 3, "chaikin")
 
 
 def test_non_triangle_refused():

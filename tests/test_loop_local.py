@@ -163,3 +163,30 @@ def test_folded_corner_ring_keeps_the_global_orientation():
     mesh = patching.from_arrays(v, f, creases={(1, 5): 10.0, (4, 5): 10.0, (5, 9): 10.0, (14, 15): 0.25},
                                 interpolate_boundary=0)
     _same(mesh, "catmark")
+
+
+def test_catmark_dart_normal_any_ring_order():
+    """A Catmull-Clark dart of valence 4 (one infinitely sharp spoke): its subdominant
+    eigenvalue 1/2 is double, and for some orders of the ring numpy's eig returns it as a
+    conjugate pair (imaginary parts ~1e-16) whose vectors' real parts coincide, which once
+    gave a zero normal.  Every rotation of every face's vertex list (other fans' start, other
+    ring order) must give the same unit normals at every corner (the first hypothesis case of
+    test_generated_catmark_local_equals_global that found it, seed 0, edge 9-10)."""
+    v, f = _quad_grid(3)
+    v = v + 0.05 * np.random.default_rng(0).standard_normal(v.shape)
+    want = None
+    for r in range(4):
+        for order in (1, -1):
+            faces = [q[r:] + q[:r] for q in f][::order]
+            mesh = patching.from_arrays(v, faces, creases={(9, 10): 10.0}, interpolate_boundary=2)
+            N = limit_masks(mesh, "catmark").corner_normals(mesh.vertices)
+            assert np.abs(np.linalg.norm(N, axis=1) - 1).max() < 1e-12, (r, order)
+            # per (vertex, face of the original list), independent of the numbering
+            got = {}
+            for j, q in enumerate(faces):
+                orig = f.index(q[-r:] + q[:-r] if r else q)
+                for c, x in enumerate(q):
+                    got[(x, orig)] = N[mesh.face_offsets[j] + c]
+            if want is None:
+                want = got
+            assert max(np.abs(got[k] - want[k]).max() for k in want) < 1e-12, (r, order)

@@ -196,3 +196,64 @@ def test_catmark_semi_sharp_crease_turns_smooth():
         assert np.abs(np.linalg.norm(op.evaluate(cube(2.0).vertices).normals, axis=1) - 1).max() < 1e-14
     sharp = shading_operator(cube(10.0), 3, "catmark")
     assert sharp.region_vertex.size > sharp.mesh.n_vertices
+
+
+def _tet(sharp_edges, s=4.0):
+    v = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], float)
+    return patching.from_arrays(v, [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]], creases={e: s for e in sharp_edges})
+
+
+def test_blend_after_semi_sharp_decay():
+    """[ZBK] sec. 3.2, Fig. 4 (variant B, blending from level 2): the extraordinary vertices on
+    edges of sharpness 4 get b = 0 while the edges are sharp and after 4 steps; after 5 (one
+    smooth step after the edges ran out) they are treated as smooth extraordinary vertices:
+    b = 1 at them and their 1-rings.  Normals stay unit and N_L where b = 0."""
+    tet = _tet([(0, 1), (1, 2), (0, 2)])
+    ev = [0, 1, 2]  # valence 3, on the crease loop (vertex points keep their ids)
+    for levels, want in ((3, 0.0), (4, 0.0), (5, 1.0), (6, 1.0)):
+        op = shading_operator(tet, levels, "loop", blend_level=2)
+        assert np.all(op.blend[ev] == want), (levels, op.blend[ev])
+        if levels == 5:
+            topo = patching.Topology(op.mesh)
+            ring = topo.dest[np.isin(topo.origin, ev)]
+            assert np.all(op.blend[ring] == 1.0)
+            out = op.evaluate(tet.vertices)
+            assert np.abs(np.linalg.norm(out.normals, axis=1) - 1).max() < 1e-14
+            zero = op.blend[op.region_vertex] == 0
+            assert np.array_equal(out.normals[zero], op.limit.normals(op.mesh.vertices)[zero])
+    # variant A treats the sharp vertices as smooth from the start: no jump at level 5
+    a4 = shading_operator(tet, 4, "loop", variant="a", blend_level=2).blend[ev]
+    assert np.all(a4 > 0)
+    # Catmull-Clark alike (vertex points at n_faces + n_edges + v): a cube with a crease loop
+    v = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], float)
+    f = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
+    cube = patching.from_arrays(v, f, creases={e: 2.0 for e in [(4, 5), (5, 7), (7, 6), (6, 4)]})
+    from patching.subdivision import subdivision_operator
+
+    ids, m = [np.array([4, 5, 6, 7])], cube  # the top face's corners at levels 0, 1, 2, 3
+    for _ in range(3):
+        t = patching.Topology(m)
+        ids.append(ids[-1] + t.n_faces + t.n_edges)
+        m = subdivision_operator(m)[1]
+    b2 = shading_operator(cube, 2, "catmark", blend_level=1)
+    b3 = shading_operator(cube, 3, "catmark", blend_level=1)
+    assert np.all(b2.blend[ids[2]] == 0.0) and np.all(b3.blend[ids[3]] == 1.0)
+
+
+def test_darts_sharp_or_smooth():
+    """[ZBK] sec. 3.3, 4.3: the tetrahedron with two sharp edges (vertices 1 and 2 darts, both
+    extraordinary).  Darts smooth (default, [ZBK] sec. 5): an extraordinary dart seeds 1; darts
+    sharp: variant B gives them 0 and they seed nothing; under variant A the two agree."""
+    darts = _tet([(0, 1), (0, 2)])
+    smooth = shading_operator(darts, 2, "loop", blend_level=2)
+    sharp = shading_operator(darts, 2, "loop", blend_level=2, darts="sharp")
+    assert np.all(smooth.blend[[1, 2]] == 1.0) and np.all(sharp.blend[[1, 2]] == 0.0)
+    assert smooth.blend[3] == sharp.blend[3] == 1.0  # the smooth extraordinary vertex
+    assert smooth.blend[0] == sharp.blend[0] == 0.0  # the crease vertex
+    for levels in (2, 4):
+        s, h = (shading_operator(darts, levels, "loop", variant="a", darts=d).blend for d in ("smooth", "sharp"))
+        assert np.array_equal(s, h)
+        out = shading_operator(darts, levels, "loop", darts="sharp").evaluate(darts.vertices)
+        assert np.abs(np.linalg.norm(out.normals, axis=1) - 1).max() < 1e-14
+    with pytest.raises(patching.errors.UnsupportedError, match="darts"):
+        shading_operator(darts, 2, "loop", darts="corner")

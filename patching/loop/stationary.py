@@ -199,7 +199,12 @@ def _analyse(block: np.ndarray, curve: tuple = (), kind: str = "ring"):
             g1 = np.flatnonzero(np.abs(aw - aw[0]) < _TIE)
             if g1.size == 2:
                 pair = rest[:, g1].T
-                if np.abs(np.imag(w[1 + g1])).max() > _TIE:  # a complex pair
+                # a complex pair, or a double real eigenvalue that eig returned as a conjugate
+                # pair (imaginary parts of the values below _TIE, of the vectors not: a
+                # Catmull-Clark dart of valence 4 in some ring orders): the real and imaginary
+                # parts of one vector span the invariant plane (the real parts of the two are
+                # the same vector, a zero normal)
+                if np.abs(np.imag(vl[:, 1 + g1])).max() > _TIE:
                     pair = np.stack([np.real(vl[:, 1 + g1[0]]), np.imag(vl[:, 1 + g1[0]])])
             elif g1.size == 1 and (aw.size == 2 or abs(aw[1] - aw[2]) >= _TIE) and aw[1] > _TIE:
                 pair = rest[:, [0, 1]].T
@@ -393,18 +398,26 @@ def stationary_masks(mesh, topo, S, scheme: str, targets: np.ndarray | None = No
         # facet pairs (orientation, approximate normals): per face i of the ring; plain
         # vertices' tangents are oriented by the ring's order (below), their first facet is
         # kept only where the pair is not unique (Catmull-Clark, ``approximate``)
+        # (all faces of the group at once, rows in the order face i, pair, vertex)
+        w_rest = np.flatnonzero(wanted & ~plain)
+        w_first = w_rest if loop else np.flatnonzero(wanted)
+        fw, fp, fq, fi = [], [], [], []
         for i in range(k):
             j = (i + 1) % m
             pairs = [(1 + i, 1 + j)] if loop else [(1 + i, 1 + m + i), (1 + m + i, 1 + j)]
-            wv = np.flatnonzero(wanted & (~plain if (i or loop) else True))
+            wv = w_rest if i else w_first
             for p, q in pairs:
-                idx = np.arange(wv.size) + n_facets
-                n_facets += wv.size
-                fa.add(idx, cols[wv, p], 1.0)
-                fa.add(idx, v[wv], -1.0)
-                fb.add(idx, cols[wv, q], 1.0)
-                fb.add(idx, v[wv], -1.0)
-                freg.append(label[ring[wv, i]])
+                fw.append(wv)
+                fp.append(np.full(wv.size, p))
+                fq.append(np.full(wv.size, q))
+                fi.append(np.full(wv.size, i))
+        fw_a, fp_a, fq_a = np.concatenate(fw), np.concatenate(fp), np.concatenate(fq)
+        idx = np.arange(fw_a.size) + n_facets
+        n_facets += fw_a.size
+        both, sign = np.concatenate([idx, idx]), np.repeat([1.0, -1.0], fw_a.size)
+        fa.add(both, np.concatenate([cols[fw_a, fp_a], v[fw_a]]), sign)
+        fb.add(both, np.concatenate([cols[fw_a, fq_a], v[fw_a]]), sign)
+        freg.append(label[ring[fw_a, np.concatenate(fi)]])
         grp = np.flatnonzero(plain)
         if grp.size and loop:
             n = float(k)

@@ -21,7 +21,20 @@ sec. 3.4, Fig. 6; one region at smooth vertices and darts):
   (Catmull-Clark) inside, other than 4 or 3 on a boundary.  Variant B ([ZBK] sec. 3.1, the
   default): sharp vertices (crease and corner rules at level 1: two or more sharp edges,
   boundary edges included, or a sharp vertex) get 0 and do not seed their ring; variant A:
-  they are treated as smooth vertices.  Darts are smooth vertices ([ZBK] sec. 5).
+  they are treated as smooth vertices.  Darts (one sharp edge) are smooth vertices by
+  default (``darts="smooth"``, [ZBK] secs. 4.3 and 5: an extraordinary dart is treated as an
+  extraordinary vertex, seeding 1); ``darts="sharp"`` treats them as sharp vertices when the
+  blend weights are set ([ZBK] sec. 3.3, Figs. 5, 12, 13: under variant B they get 0 and seed
+  nothing; under variant A sharp vertices are smooth ones, so the two treatments agree).
+  Semi-sharp features ([ZBK] sec. 3.2, Fig. 4): a sharp vertex whose semi-sharp edges (or
+  corner sharpness) run out is from then on "treated exactly as a smooth vertex": if
+  extraordinary, it seeds 1 at itself and its 1-ring (variant B; ``b`` elsewhere kept) one
+  level after its rule turned smooth, i.e. at level s + 1 for a crease of integer sharpness s
+  (whose level-s rule is the first smooth one): Fig. 4 shows no blending on the s = 4 edges
+  after 4 steps and blending at their extraordinary vertices after 5.  Reconstructed from the
+  text and Fig. 4's caption (the paper does not say how the new 1s meet the subdivided b; here
+  they replace it; a vertex that turns smooth at or before the seeding level is seeded there).  The
+  normals' stencils are the geometry's either way (a dart's region is its whole ring).
 * ``N_B = normalise((1 - b^p) N_L + b^p N_S)``, [ZBK] eq. (1), p = 1 by default.
 
 Reconstructed where the text is silent or damaged: the level at which blending starts (level
@@ -48,10 +61,12 @@ from ..loop.limit import LimitMasks
 from ..loop.stationary import cross, level_rules, regions_of
 from .limit import SCHEMES, limit_masks
 
-__all__ = ["ShadingOperator", "SubdividedMesh", "shading_operator", "subdivide_with_normals", "NORMAL_MODES", "VARIANTS"]
+__all__ = ["ShadingOperator", "SubdividedMesh", "shading_operator", "subdivide_with_normals", "NORMAL_MODES", "VARIANTS",
+           "DART_MODES"]
 
 NORMAL_MODES = ("none", "limit", "shading")
 VARIANTS = ("a", "b")
+DART_MODES = ("smooth", "sharp")
 MAX_SHADING_FACES = 4_000_000
 
 
@@ -142,12 +157,12 @@ def _extraordinary(topo: Topology, scheme: str) -> np.ndarray:
     return topo.vertex_is_used & np.where(b, val != regular // 2 + 1, val != regular)
 
 
-def _seed_blend(mesh: ControlMesh, scheme: str, variant: str) -> np.ndarray:
+def _seed_blend(mesh: ControlMesh, scheme: str, variant: str, darts: str = "smooth") -> np.ndarray:
     """Control blend weights (module docstring): 1 at extraordinary vertices and their 1-rings;
-    variant B: 0 at sharp vertices, which seed nothing."""
+    variant B: 0 at sharp vertices (darts too if ``darts == "sharp"``), which seed nothing."""
     topo, _, _, rule = _regions(mesh)
     ev = _extraordinary(topo, scheme)
-    sharp_v = rule >= 2  # CREASE or CORNER
+    sharp_v = rule >= (1 if darts == "sharp" else 2)  # (DART,) CREASE or CORNER
     seeds = ev & ~sharp_v if variant == "b" else ev
     b = seeds.astype(np.float64)
     h = np.flatnonzero(seeds[topo.origin])
@@ -155,6 +170,34 @@ def _seed_blend(mesh: ControlMesh, scheme: str, variant: str) -> np.ndarray:
     b[topo.origin[topo.prev[h]]] = 1.0
     if variant == "b":
         b[sharp_v] = 0.0
+    return b
+
+
+def _reseed_decayed(grand: ControlMesh, parent: ControlMesh, child: ControlMesh, b: np.ndarray, scheme: str,
+                    variant: str, darts: str) -> np.ndarray:
+    """Variant B, ``b`` at ``child``: the vertices that turned from sharp (at ``grand``) to
+    smooth (at ``parent``) and have had one smooth step since -- their semi-sharp edges or corner
+    ran out, [ZBK] sec. 3.2, Fig. 4 -- seed 1 at themselves and their 1-rings in the child if
+    they are extraordinary, as ``_seed_blend`` does; ``b`` elsewhere unchanged."""
+    if variant != "b":
+        return b  # variant A treated them as smooth vertices from the start
+    gtopo, _, _, grule = _regions(grand)
+    ptopo, _, _, prule = _regions(parent)
+    ctopo = topology_of(child)
+    thr = 1 if darts == "sharp" else 2
+    loop = scheme == "loop"
+    to_p = np.arange(gtopo.n_vertices) + (0 if loop else gtopo.n_faces + gtopo.n_edges)
+    to_c = to_p + (0 if loop else ptopo.n_faces + ptopo.n_edges)
+    turned = (grule >= thr) & (prule[to_p] < thr) & _extraordinary(ctopo, scheme)[to_c]
+    if not turned.any():
+        return b
+    seeds = np.zeros(ctopo.n_vertices, bool)
+    seeds[to_c[turned]] = True
+    b = b.copy()
+    b[seeds] = 1.0
+    h = np.flatnonzero(seeds[ctopo.origin])
+    b[ctopo.dest[h]] = 1.0
+    b[ctopo.origin[ctopo.prev[h]]] = 1.0
     return b
 
 
@@ -229,18 +272,21 @@ class ShadingOperator:
 
 def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", normals: str = "shading",
                      variant: str = "b", power: float = 1.0, rules: str = "opensubdiv",
-                     crease_method: str = "uniform", blend_level: int = 1) -> ShadingOperator:
+                     crease_method: str = "uniform", blend_level: int = 1, darts: str = "smooth") -> ShadingOperator:
     """Build the refined mesh's operators (module docstring).  levels >= 1 for normals;
     scheme "loop" or "catmark"; normals "none", "limit" or "shading"; variant "a" or "b";
     power p of [ZBK] eq. (1); rules and crease_method as ``patching.subdivision`` (catmark);
     blend_level: the level whose extraordinary vertices seed b (1, [ZBK] sec. 2.3's default;
-    [ZBK] sec. 5 counts the vertices that need N_S with blending started at level 4)."""
+    [ZBK] sec. 5 counts the vertices that need N_S with blending started at level 4); darts
+    "smooth" (default) or "sharp" (module docstring)."""
     if scheme not in SCHEMES:
         raise UnsupportedError(f"--scheme must be one of {', '.join(SCHEMES)}, got '{scheme}'")
     if normals not in NORMAL_MODES:
         raise UnsupportedError(f"--normals must be one of {', '.join(NORMAL_MODES)}, got '{normals}'")
     if variant not in VARIANTS:
         raise UnsupportedError(f"--shading-variant must be a or b, got '{variant}'")
+    if darts not in DART_MODES:
+        raise UnsupportedError(f"darts must be treated as {' or '.join(DART_MODES)} vertices, got '{darts}'")
     if levels < 0 or (normals != "none" and levels < 1):
         raise UnsupportedError(f"normals need at least one subdivision step (-n {levels})")
     if normals != "none" and not 1 <= blend_level <= levels:
@@ -298,14 +344,16 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
     b = None
     for level, (cur_mesh, S, child, pface) in enumerate(ops[1:], start=1):
         if level == blend_level:
-            b = _seed_blend(cur_mesh, scheme, variant)
+            b = _seed_blend(cur_mesh, scheme, variant, darts)
         ctopo, clabel, crv, _ = _regions(child)
         ops_n.append(region_operator(S, ptopo, plabel, prv, clabel, crv, pface))
         if b is not None:
             b = S @ b
+            if level > blend_level:  # turned smooth after the seeding level
+                b = _reseed_decayed(ops[level - 1][0], cur_mesh, child, b, scheme, variant, darts)
         plabel, prv, ptopo = clabel, crv, ctopo
     if b is None:
-        b = _seed_blend(cur, scheme, variant)
+        b = _seed_blend(cur, scheme, variant, darts)
     return ShadingOperator(
         scheme, levels, normals, variant, power, cur, steps, first, (fv, fv[nxt]),
         ops_n, b, L, plabel if levels > 1 else label1, prv if levels > 1 else rv1, keep,
