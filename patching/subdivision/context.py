@@ -19,7 +19,7 @@ from patching.rules.catmark import (
     DART,
     SMOOTH,
 )
-from patching.topology.tables import Topology
+from patching.topology.cache import topology_of
 
 
 
@@ -70,7 +70,7 @@ class _Context:
     """Topology tables, intervals and tags of one mesh, as flat arrays (read-only)."""
 
     def __init__(self, mesh: ControlMesh, crease_method: str = "uniform") -> None:
-        t = Topology(mesh)
+        t = topology_of(mesh)  # derived from the parent's when the mesh is a child
         self.mesh, self.topo = mesh, t
         self.crease_method = crease_method
         self.H = t.origin.size

@@ -143,6 +143,15 @@ class Topology:
         out[self.origin[boundary_out]] = boundary_out
         return out
 
+    @cached_property
+    def vertex_outgoing(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ptr (n + 1,), idx (H,)) int64: the outgoing half-edges of vertex v are
+        ``idx[ptr[v]:ptr[v + 1]]``, in no particular order (here ascending; a subdivided mesh's
+        Topology derives them from its parent's in another order)."""
+        ptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(self.origin, minlength=self.n_vertices), out=ptr[1:])
+        return ptr, np.argsort(self.origin, kind="stable").astype(np.int64)
+
     def rotate(self, h: np.ndarray) -> np.ndarray:
         """Next outgoing half-edge around origin(h), clockwise seen from outside: twin(prev(h)).
         -1 where that crosses the boundary."""
