@@ -546,8 +546,14 @@ def _operator(ctx: _Context, rules: str, angles: str, canonical: bool = True) ->
         _refuse_nonuniform(ctx)
     if ctx.uniform:
         s = _uniform_quads(ctx, seed, canonical)
-        if s is not None:
-            return s
+        return _triplet_operator(ctx, rules, angles) if s is None else s
+    # the local solves at EPs and tagged vertices: many small dense problems (util.blas)
+    return one_blas_thread(_triplet_operator)(ctx, rules, angles)
+
+
+def _triplet_operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
+    """S gathered rule by rule as triplets (any faces, any intervals)."""
+    seed = rules in ("seed", "nurss")
     nonuniform = not ctx.uniform
     par = ctx.parent
     rows = TripletRows()
@@ -754,7 +760,6 @@ def _refuse_semi_sharp_on_zero(ctx: _Context) -> None:
     )
 
 
-@one_blas_thread
 def subdivision_operator(
     mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
 ) -> tuple[sp.csr_matrix, ControlMesh]:
@@ -806,11 +811,6 @@ def subdivide(
             f"{MAX_SUBDIVIDE_FACES:,} (about 1.4 kB of memory each): take fewer steps",
             mesh.name,
         )
-    return _steps(mesh, steps, rules, angles, crease_method)
-
-
-@one_blas_thread
-def _steps(mesh: ControlMesh, steps: int, rules: str, angles: str, crease_method: str) -> ControlMesh:
     for _ in range(steps):
         _, mesh = _step(mesh, rules, angles, crease_method, canonical=False)
     return mesh

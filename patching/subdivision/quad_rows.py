@@ -59,25 +59,45 @@ def quad_operator(
     if np.any((sm > 0) & vb) or np.any(eb & (w != 1.0)):
         return None
     origin, dest, nxt, prv = ctx.origin, ctx.dest, ctx.nxt, ctx.prv
+    ptr, out = t.vertex_outgoing
+    count = np.diff(ptr)
+    v_len = 1 + 2 * count + vb
+    v_ptr = np.zeros(nv + 1, np.int64)
+    np.cumsum(v_len, out=v_ptr[1:])
+    # one array each for indices and data, filled block by block: faces, edges, vertices
+    n_rows = nf + ne + nv
+    e0, v0 = H, H + 6 * ne
+    nnz = v0 + int(v_ptr[-1])
+    idx_t = np.int32 if max(nnz, nv) < 2**31 else np.int64  # scipy's own choice, no copy
+    indptr = np.empty(n_rows + 1, idx_t)
+    indptr[:nf] = np.arange(0, H, 4)
+    indptr[nf : nf + ne] = np.arange(e0, v0, 6)
+    indptr[nf + ne :] = v0 + v_ptr
+    indices = np.empty(nnz, idx_t)
+    data = np.empty(nnz, np.float64)
+    indices[:e0] = origin
+    data[:e0] = 0.25
 
     # -- edge rows: a, b, c, x, y, z (boundary: y = z = a, weight 0) --------------------------
     h = t.edge_halfedge
     tw = ctx.twin[h]
     tw0 = np.maximum(tw, 0)
-    a, b = origin[h], dest[h]
     inside = tw >= 0
-    e_cols = np.stack(
-        [a, b, dest[nxt[h]], origin[prv[h]], np.where(inside, dest[nxt[tw0]], a), np.where(inside, origin[prv[tw0]], a)],
-        axis=1,
-    )
+    e_cols = indices[e0:v0].reshape(ne, 6)
+    e_cols[:, 0] = a = origin[h]
+    e_cols[:, 1] = dest[h]
+    e_cols[:, 2] = dest[nxt[h]]
+    e_cols[:, 3] = origin[prv[h]]
+    e_cols[:, 4] = np.where(inside, dest[nxt[tw0]], a)
+    e_cols[:, 5] = np.where(inside, origin[prv[tw0]], a)
     smooth = 1.0 - w
     mid = 0.5 * w + 0.375 * smooth
-    side = np.where(inside, 0.0625 * smooth, 0.0)
-    e_vals = np.stack([mid + corr, mid - corr, side, side, side, side], axis=1)
+    e_vals = data[e0:v0].reshape(ne, 6)
+    e_vals[:, 0] = mid + corr
+    e_vals[:, 1] = mid - corr
+    e_vals[:, 2:] = np.where(inside, 0.0625 * smooth, 0.0)[:, None]
 
     # -- vertex rows -----------------------------------------------------------------------------
-    ptr, out = t.vertex_outgoing
-    count = np.diff(ptr)
     n = np.maximum(ctx.valence, 1).astype(np.float64)
     p_rule, c_rule = ctx.parent.rule, ctx.child.rule
     pc = np.where(p_rule == CREASE, ps, 0.0)
@@ -89,39 +109,34 @@ def quad_operator(
         + np.where(c_rule == CORNER, cs, 0.0)
         + np.where(used, 0.0, 1.0)
     )
-    v_len = 1 + 2 * count + vb
-    v_ptr = np.zeros(nv + 1, np.int64)
-    np.cumsum(v_len, out=v_ptr[1:])
-    v_cols = np.empty(v_ptr[-1], np.int64)
-    v_vals = np.empty(v_ptr[-1], np.float64)
-    v_cols[v_ptr[:-1]] = np.arange(nv, dtype=np.int64)
+    v_cols, v_vals = indices[v0:], data[v0:]
+    v_cols[v_ptr[:-1]] = np.arange(nv)
     v_vals[v_ptr[:-1]] = centre
     vo = origin[out]  # the vertex of each ring entry
-    pos = v_ptr[vo] + 1 + 2 * (np.arange(out.size, dtype=np.int64) - ptr[vo])
-    spoke = ctx.eoh[out]
-    pce, cce = ctx.parent.crease_edges, ctx.child.crease_edges
-    crease_w = 0.125 * (
-        pc[vo] * ((spoke == pce[vo, 0]) | (spoke == pce[vo, 1])) + cc[vo] * ((spoke == cce[vo, 0]) | (spoke == cce[vo, 1]))
-    )
-    nn = n[vo] ** 2
+    pos = (v_ptr[:-1] - 2 * ptr[:-1] + 1)[vo] + 2 * np.arange(out.size, dtype=np.int64)
+    nn = n * n
     v_cols[pos] = dest[out]
-    v_vals[pos] = sm[vo] * 1.5 / nn + crease_w
+    v_vals[pos] = (sm * 1.5 / nn)[vo]
     v_cols[pos + 1] = dest[nxt[out]]
-    v_vals[pos + 1] = sm[vo] * 0.25 / nn
-    inc = np.flatnonzero(ctx.twin < 0)  # incoming boundary half-edges: the far end
-    if inc.size:
-        v = dest[inc]
-        at = v_ptr[v + 1] - 1
-        spoke = ctx.eoh[inc]
-        v_cols[at] = origin[inc]
-        v_vals[at] = 0.125 * (
-            pc[v] * ((spoke == pce[v, 0]) | (spoke == pce[v, 1])) + cc[v] * ((spoke == cce[v, 0]) | (spoke == cce[v, 1]))
-        )
+    v_vals[pos + 1] = (sm * 0.25 / nn)[vo]
+    inc = np.flatnonzero(ctx.twin < 0)  # incoming boundary half-edges: the far end, last
+    far = v_ptr[dest[inc] + 1] - 1
+    v_cols[far] = origin[inc]
+    v_vals[far] = 0.0  # (crease part below)
+    # crease part: 1/8 on the far end of each of the two crease edges of a crease vertex
+    ring_pos = np.empty(H, np.int64)  # entry of dest(h) in the row of origin(h)
+    ring_pos[out] = pos
+    for scale, lev in ((pc, ctx.parent), (cc, ctx.child)):
+        v = np.flatnonzero(scale > 0)
+        for k in (0, 1):
+            hh = t.edge_halfedge[lev.crease_edges[v, k]]
+            tw_h = ctx.twin[hh]
+            at = np.where(
+                origin[hh] == v, ring_pos[hh], np.where(tw_h >= 0, ring_pos[np.maximum(tw_h, 0)], v_ptr[v + 1] - 1)
+            )
+            np.add.at(v_vals, at, 0.125 * scale[v])
 
-    indptr = np.concatenate([4 * np.arange(nf, dtype=np.int64), 4 * nf + 6 * np.arange(ne, dtype=np.int64), H + 6 * ne + v_ptr])
-    indices = np.concatenate([origin, e_cols.ravel(), v_cols])
-    data = np.concatenate([np.full(H, 0.25), e_vals.ravel(), v_vals])
-    s = sp.csr_matrix((data, indices, indptr), shape=(nf + ne + nv, nv))
+    s = sp.csr_matrix((data, indices, indptr), shape=(n_rows, nv))
     if canonical:
         s.sum_duplicates()
         s.eliminate_zeros()
