@@ -53,7 +53,8 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     # on the strip's first edge in the order (halves at edges[:, 0], halves at edges[:, 1],
     # inner edges).  When every parent strip splits into its two sides (``split_strips``), the
     # first edges of the two child strips of parent strip s are the halves of s's first edge.
-    if split_strips(ctx.topo) is not None:
+    group = split_strips(ctx.topo)
+    if group is not None:
         t = ctx.topo
         first = np.empty(t.n_strips, np.int64)
         first[t.edge_strip[::-1]] = np.arange(ne - 1, -1, -1, dtype=np.int64)
@@ -64,9 +65,9 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
             intervals.update(zip(zip(lo, (nf + ne + ctx.edges[first, k]).tolist()), d))
         out = replace(child, intervals=intervals)
         parent = ctx.topo
-        remember(out, lambda: _derived(parent, out))
+        remember(out, lambda: _derived(parent, out, group))
         return out
-    ct = _derived(ctx.topo, child)
+    ct = _derived(ctx.topo, child, group)
     half = ctx.H + 2 * np.arange(ne, dtype=np.int64)
     idx = np.concatenate([half, half + 1, ct.edge_of[4 * h + 1]])  # child edge of each pair
     a, b = ctx.edges[:, 0], ctx.edges[:, 1]
@@ -93,7 +94,7 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     return out
 
 
-def _derived(parent: Topology, child: ControlMesh) -> Topology:
+def _derived(parent: Topology, child: ControlMesh, group: np.ndarray | None | bool = False) -> Topology:
     """The child's Topology from the parent's (``child_topology``), or built afresh."""
-    ct = child_topology(parent, child)
+    ct = child_topology(parent, child, group)
     return Topology(child) if ct is None else ct

@@ -93,10 +93,11 @@ def split_strips(t: Topology) -> np.ndarray | None:
     return 2 * t.edge_strip[:, None] + np.arange(2)
 
 
-def child_topology(t: Topology, child: ControlMesh) -> Topology | None:
+def child_topology(t: Topology, child: ControlMesh, group: np.ndarray | None | bool = False) -> Topology | None:
     """The child mesh's Topology from the parent's ``t`` (module docstring), or None where the
     derivation does not apply (a face bordering itself across an edge: ``Topology(child)``
-    then merges what the index arithmetic keeps apart)."""
+    then merges what the index arithmetic keeps apart).  group: ``split_strips(t)`` if the
+    caller has it (False: computed here)."""
     tw = t.twin
     inside = tw >= 0
     if np.any(t.face[tw[inside]] == t.face[inside]):
@@ -149,7 +150,8 @@ def child_topology(t: Topology, child: ControlMesh) -> Topology | None:
     c.__dict__["vertex_is_boundary"] = np.concatenate([np.zeros(nf, bool), eb, t.vertex_is_boundary])
     c.__dict__["vertex_is_used"] = np.concatenate([np.ones(nf + ne, bool), t.vertex_is_used])
     c.__dict__["vertex_outgoing"] = _child_outgoing(t, fsize, tn)
-    group = split_strips(t)
+    if group is False:
+        group = split_strips(t)
     if group is not None:
         # inner edge of h is parallel to next(h): the strip side of next(h)'s half at dest(h)
         g = np.empty(c.n_edges, np.int64)

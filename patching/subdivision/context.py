@@ -122,10 +122,10 @@ class _Context:
             ee = np.concatenate([s0, s1])
             order = np.argsort(vv, kind="stable")
             vv, ee = vv[order], ee[order]
-            first = np.searchsorted(vv, np.arange(self.nv))
             crease = np.flatnonzero(rule == CREASE)
-            ends[crease, 0] = ee[first[crease]]
-            ends[crease, 1] = ee[first[crease] + 1]
+            first = np.searchsorted(vv, crease)
+            ends[crease, 0] = ee[first]
+            ends[crease, 1] = ee[first + 1]
         return _Level(sharp, vsharp, rule, ends)
 
     @cached_property
