@@ -51,18 +51,15 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
     )
     # One interval per child strip (docs/knots.md: a value on one edge applies to its strip),
     # on the strip's first edge in the order (halves at edges[:, 0], halves at edges[:, 1],
-    # inner edges).  When every parent strip splits into its two sides (``split_strips``), the
-    # first edges of the two child strips of parent strip s are the halves of s's first edge.
+    # inner edges).  When every parent strip splits into its two sides (``split_strips``), a
+    # side's first edge is one of its halves: the half k of edge e comes k * ne + e-th.
     group = split_strips(ctx.topo)
     if group is not None:
-        t = ctx.topo
-        first = np.empty(t.n_strips, np.int64)
-        first[t.edge_strip[::-1]] = np.arange(ne - 1, -1, -1, dtype=np.int64)
-        d = (t.strip_interval / 2.0).tolist()
-        lo = (nf + first).tolist()
-        intervals = {}
-        for k in (0, 1):
-            intervals.update(zip(zip(lo, (nf + ne + ctx.edges[first, k]).tolist()), d))
+        order_groups = np.concatenate([group[:, 0], group[:, 1]])
+        first = np.empty(int(group.max()) + 1, np.int64)
+        first[order_groups[::-1]] = np.arange(2 * ne - 1, -1, -1, dtype=np.int64)
+        e, k = first % ne, first // ne
+        intervals = dict(zip(zip((nf + e).tolist(), (nf + ne + ctx.edges[e, k]).tolist()), (ctx.d_e[e] / 2.0).tolist()))
         out = replace(child, intervals=intervals)
         parent = ctx.topo
         remember(out, lambda: _derived(parent, out, group))

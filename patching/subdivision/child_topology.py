@@ -26,16 +26,20 @@ side, the same rail of the strip: along every strip of a child mesh the first en
 a child, all quads: checked, not assumed), each parent strip s splits into exactly two child
 strips, the halves at ``edges[e, k]`` with k = 0 and with k = 1 (and the inner edges parallel
 to them), numbered ``2 s + k`` and then renumbered in the order of each strip's smallest edge,
-as ``Topology``'s connected components number them.  Otherwise (the first step of a user's
-mesh, non-quads) the strips are left to ``Topology``'s own search on the derived tables.
+as ``Topology``'s connected components number them.  A user's quad mesh splits its strips in
+two as well, the sides found by a graph search on the halves of its edges (``split_strips``);
+with non-quads (the first step only) the strips are left to ``Topology``'s own search on the
+derived tables.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from patching.mesh.control_mesh import ControlMesh
 from patching.topology.tables import Topology
+from patching.util.graph import connected_components
 
 __all__ = ["child_topology", "split_strips"]
 
@@ -80,17 +84,26 @@ def _child_outgoing(t: Topology, fsize: np.ndarray, tn: np.ndarray) -> tuple[np.
 
 
 def split_strips(t: Topology) -> np.ndarray | None:
-    """(e, 2) child strip label of the half of every parent edge at ``edges[e, k]``, when
-    every parent strip splits into the two k-sides (module docstring); else None."""
+    """(e, 2) child strip group of the half of every parent edge at ``edges[e, k]`` for an
+    all-quad parent (None otherwise): each parent strip splits into two child strips, one a
+    side.  In a quad (h_0 .. h_3) the half of h_i at its origin and the half of h_{i+2} at its
+    dest lie on one side.  When that half has the same k everywhere (the parent is itself a
+    child: module docstring) the groups are ``2 s + k``; otherwise (a user's quad mesh) the
+    sides are the components of the graph of those links on the 2 e halves."""
     fo = t.mesh.face_offsets
     if t.n_faces == 0 or not np.all(np.diff(fo) == 4):
         return None
     k_orig = (t.edges[t.edge_of, 1] == t.origin).reshape(-1, 4)
-    # rung pair (h_i, h_{i+2}): the half of h_i at its origin and of h_{i+2} at its dest
-    # (= 1 - k at its origin) lie in one child strip: they must have the same k.
-    if not np.array_equal(k_orig[:, :2], 1 - k_orig[:, 2:]):
-        return None
-    return 2 * t.edge_strip[:, None] + np.arange(2)
+    if np.array_equal(k_orig[:, :2], 1 - k_orig[:, 2:]):
+        return 2 * t.edge_strip[:, None] + np.arange(2)
+    e = t.edge_of.reshape(-1, 4)
+    at_origin = 2 * e + k_orig
+    at_dest = 2 * e + 1 - k_orig
+    a = at_origin.ravel()
+    b = at_dest[:, [2, 3, 0, 1]].ravel()
+    n = 2 * t.n_edges
+    _, label = connected_components(sp.coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)
+    return label.astype(np.int64).reshape(-1, 2)
 
 
 def child_topology(t: Topology, child: ControlMesh, group: np.ndarray | None | bool = False) -> Topology | None:
@@ -157,13 +170,15 @@ def child_topology(t: Topology, child: ControlMesh, group: np.ndarray | None | b
         g = np.empty(c.n_edges, np.int64)
         g[H:] = group.ravel()
         g[inner] = g[half_o[nxt]]
-        n_groups = 2 * t.n_strips
+        n_groups = int(group.max()) + 1
         first = np.empty(n_groups, np.int64)  # smallest child edge of each group
         first[g[::-1]] = np.arange(c.n_edges - 1, -1, -1, dtype=np.int64)
         order = np.argsort(first, kind="stable")
         label = np.empty(n_groups, np.int64)
         label[order] = np.arange(n_groups, dtype=np.int64)
+        strip_of_group = np.empty(n_groups, np.int64)
+        strip_of_group[group.ravel()] = np.repeat(t.edge_strip, 2)
         c.__dict__["edge_strip"] = label[g]
         c.__dict__["n_strips"] = n_groups
-        c.__dict__["strip_interval"] = (t.strip_interval / 2.0)[order // 2]
+        c.__dict__["strip_interval"] = (t.strip_interval / 2.0)[strip_of_group[order]]
     return c
