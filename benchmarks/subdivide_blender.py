@@ -16,12 +16,12 @@ Blender's ``bpy`` module is a benchmark tool only, never a dependency: give its 
 ``.venv/bin/python benchmarks/subdivide_blender.py [--mesh catmark_pawn] [--levels 3 4] [--runs 3]
 [--bpy PYTHON] [--before CHECKOUT]``.
 
-Measured (catmark_pawn, 5 runs, load 11 on 2 cores; CPU seconds, M output faces/s of CPU):
+Measured (catmark_pawn, 5 runs, load 10 on 2 cores; CPU seconds, M output faces/s of CPU):
 
-    level 3   in process: main 0.066 (0.57)  this 0.013 (2.88)  Blender 0.040 (0.95)
-              whole:      main 0.72          this 0.61 (0.67x)  Blender 0.91
-    level 4   in process: main 0.255 (0.59)  this 0.032 (4.70)  Blender 0.108 (1.40)
-              whole:      main 1.44          this 0.83 (0.79x)  Blender 1.05
+    level 3   in process: main 0.058 (0.65)  this 0.010 (3.72)  Blender 0.036 (1.05)
+              whole:      main 0.60          this 0.45 (0.64x)  Blender 0.71
+    level 4   in process: main 0.228 (0.66)  this 0.031 (4.88)  Blender 0.108 (1.40)
+              whole:      main 1.21          this 0.83 (0.79x)  Blender 1.05
 
 (child topologies derived from the parent's, uniform quad steps written in CSR order, the
 OBJ writer's face lines formatted with numpy: docs/speed.md).
