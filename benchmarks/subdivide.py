@@ -16,6 +16,14 @@ and edge of every vertex (cached by configuration); they are now one vectorised 
     pawn x2, random intervals (589 solves)  1.6e5     9.0e5
     icosphere x1, random (7682 EPs)         1.1e4     3.3e5   (target 2e5)
 
+Each level's topology derived from the parent's and uniform quad steps written in CSR order
+(``child_topology``, ``quad_rows``), 'S+mesh' output faces/s, one run each at load 8:
+
+    mesh                                   before     after
+    pawn x2, opensubdiv rules               3.8e5     3.4e6
+    pawn x2 (seed rules, creases)           4.2e5     2.5e6
+    torus 100x100 non-uniform               2.9e5     1.1e6
+
 Run: .venv/bin/python benchmarks/subdivide.py [--report]  (--report adds the EP eigen-structure\nby interval ratio and [ZTL]'s blending-function maxima, standard vs modified angles)
 """
 

@@ -309,17 +309,24 @@ def _repeat(template: str, rows: list) -> str:
 
 
 def _face_text(mesh: ControlMesh) -> str:
-    """The ``f`` lines, 1-based, in face order: one format per face size, then interleaved."""
-    sizes = mesh.face_sizes
-    if sizes.size == 0:
+    """The ``f`` lines, 1-based, in face order, as ``"f %d %d ...\n"`` would write them, formatted
+    with numpy: every index's decimal digits in a row of a byte table (``f`` before a face's
+    first index, a newline after its last, zero bytes as padding), the zero bytes dropped.
+    A Python format per line costs ~1 us a face (37k faces: 0.12 s against 0.02 s)."""
+    if mesh.face_sizes.size == 0:
         return ""
-    kinds = np.unique(sizes)
-    if kinds.size == 1:
-        k = int(kinds[0])
-        return _repeat("f" + " %d" * k + "\n", (mesh.face_vertices.reshape(-1, k) + 1).tolist())
-    lines = np.empty(sizes.size, dtype=object)
-    for k in kinds.tolist():
-        sel = np.flatnonzero(sizes == k)
-        verts = mesh.face_vertices[mesh.face_offsets[sel][:, None] + np.arange(k)] + 1
-        lines[sel] = _repeat("f" + " %d" * k + "\n", verts.tolist()).splitlines(keepends=True)
-    return "".join(lines.tolist())
+    x = mesh.face_vertices + 1
+    width = len(str(int(x.max())))
+    x = x.astype(np.int32 if width < 10 else np.int64)
+    table = np.zeros((x.size, width + 3), np.uint8)
+    table[mesh.face_offsets[:-1], 0] = ord("f")
+    table[:, 1] = ord(" ")
+    rest = x
+    for place in range(width):  # column width + 1 - place: the digit of 10^place
+        rest, digit = np.divmod(rest, 10)
+        digit += ord("0")
+        if place:
+            digit *= x >= 10**place  # no leading zeros
+        table[:, width + 1 - place] = digit
+    table[mesh.face_offsets[1:] - 1, width + 2] = ord("\n")
+    return table[table != 0].tobytes().decode("ascii")

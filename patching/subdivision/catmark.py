@@ -144,6 +144,7 @@ from patching.rules.catmark import (
 )
 from patching.subdivision.child_mesh import _child_mesh
 from patching.subdivision.context import _Context, _Level, _decrement
+from patching.subdivision.quad_rows import quad_operator
 from patching.util.sparse_rows import TripletRows
 
 __all__ = [
@@ -241,19 +242,30 @@ def _tensor_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np
 def _blz_edge_correction(ctx: _Context, rows: TripletRows, lev: _Level, e: np.ndarray, scale) -> None:
     """BLZ's modification next to tagged vertices, as a correction of the standard rule:
     ``(3/8 - gamma)(tagged end - other end)`` (mean of the two when both ends are tagged)."""
+    e, corr = _blz_terms(ctx, lev, e, scale)
     if e.size == 0:
         return
     h = ctx.topo.edge_halfedge[e]
-    t = ctx.twin[h]
+    row = ctx.nf + e
+    rows.add(row, ctx.origin[h], corr)
+    rows.add(row, ctx.dest[h], -corr)
+
+
+def _blz_terms(ctx: _Context, lev: _Level, e: np.ndarray, scale) -> tuple[np.ndarray, np.ndarray]:
+    """(edges, corr): the edges of ``e`` with a tagged end and their BLZ correction, the weight
+    added to ``origin(edge_halfedge)`` and taken from ``dest`` (``_blz_edge_correction``)."""
+    h = ctx.topo.edge_halfedge[e]
     a, b = ctx.origin[h], ctx.dest[h]
     tag_a, tag_b = lev.rule[a] != SMOOTH, lev.rule[b] != SMOOTH
+    keep = np.flatnonzero(tag_a | tag_b)  # the correction is 0 elsewhere
+    if keep.size == 0:
+        return keep, np.zeros(0)
+    h, tag_a, tag_b = h[keep], tag_a[keep], tag_b[keep]
+    t = ctx.twin[h]
     both = np.where(tag_a & tag_b, 0.5, 1.0)
     delta_a = np.where(tag_a, 0.375 - blz_gamma(ctx.theta_at(lev, h)), 0.0)
     delta_b = np.where(tag_b, 0.375 - blz_gamma(ctx.theta_at(lev, t)), 0.0)
-    corr = scale * both * (delta_a - delta_b)
-    row = ctx.nf + e
-    rows.add(row, a, corr)
-    rows.add(row, b, -corr)
+    return e[keep], np.broadcast_to(scale, e.shape)[keep] * both * (delta_a - delta_b)
 
 
 def _sharp_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray, seed: bool) -> None:
@@ -526,10 +538,22 @@ def _refuse_nonuniform(ctx: _Context) -> None:
     )
 
 
-def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
+def _operator(ctx: _Context, rules: str, angles: str, canonical: bool = True) -> sp.csr_matrix:
+    """S of one step.  canonical=False (``subdivide``'s own products) may leave explicit zeros
+    and repeated columns in the rows of ``quad_operator``: the same products."""
     seed = rules in ("seed", "nurss")  # NURSS differs from [TLC]'s rules at smooth EPs only
     if rules == "opensubdiv" and not ctx.uniform:
         _refuse_nonuniform(ctx)
+    if ctx.uniform:
+        s = _uniform_quads(ctx, seed, canonical)
+        return _triplet_operator(ctx, rules, angles) if s is None else s
+    # the local solves at EPs and tagged vertices: many small dense problems (util.blas)
+    return one_blas_thread(_triplet_operator)(ctx, rules, angles)
+
+
+def _triplet_operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
+    """S gathered rule by rule as triplets (any faces, any intervals)."""
+    seed = rules in ("seed", "nurss")
     nonuniform = not ctx.uniform
     par = ctx.parent
     rows = TripletRows()
@@ -580,11 +604,7 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     # Vertex points: parent rule, blended with the child rule (scheme.h ComputeVertexVertexMask).
     chi = ctx.child
     p_rule, c_rule = par.rule, chi.rule
-    pw = _fractional_weight(ctx)
-    blend = (p_rule > DART) & (c_rule != p_rule)
-    sm_scale = np.where(p_rule <= DART, 1.0, np.where(blend & (c_rule <= DART), 1.0 - pw, 0.0))
-    parent_scale = np.where(p_rule <= DART, 0.0, np.where(blend, pw, 1.0))
-    child_scale = np.where(blend & (c_rule > DART), 1.0 - pw, 0.0)
+    sm_scale, parent_scale, child_scale = _vertex_scales(ctx)
     used = ctx.topo.vertex_is_used
     free_v = ~claimed[ctx.nf + ctx.ne :] & used
     vs_ = np.flatnonzero((sm_scale > 0) & free_v)
@@ -614,6 +634,36 @@ def _operator(ctx: _Context, rules: str, angles: str) -> sp.csr_matrix:
     # EP and tagged-vertex rows (mean of the claims).
     claims.emit(rows)
     return rows.matrix((n_out, ctx.nv))
+
+
+def _uniform_quads(ctx: _Context, seed: bool, canonical: bool) -> sp.csr_matrix | None:
+    """S of a uniform step of an all-quad mesh in CSR order (``quad_operator``): the rows
+    ``_operator``'s triplets give, BLZ's edge correction included under the seed rules."""
+    if not np.all(ctx.fsize == 4):
+        return None
+    w = ctx.edge_sharp_weight
+    corr = np.zeros(ctx.ne)
+    if seed:
+        smooth_e = np.flatnonzero(w != 1)
+        frac = w[smooth_e] > 0
+        scale = 1.0 - w[smooth_e]
+        for lev, sel in ((ctx.parent, ~frac), (ctx.child, frac)):
+            e, c = _blz_terms(ctx, lev, smooth_e[sel], scale[sel])
+            corr[e] += c
+    return quad_operator(ctx, w, corr, _vertex_scales(ctx), canonical)
+
+
+def _vertex_scales(ctx: _Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(v,) weights of the smooth, the parent's (crease or corner) and the child's rule in every
+    vertex point (``Sdc::Scheme::ComputeVertexVertexMask``: a vertex whose rule changes this
+    step blends the parent rule, by the fractional weight, with the child's)."""
+    p_rule, c_rule = ctx.parent.rule, ctx.child.rule
+    pw = _fractional_weight(ctx)
+    blend = (p_rule > DART) & (c_rule != p_rule)
+    sm_scale = np.where(p_rule <= DART, 1.0, np.where(blend & (c_rule <= DART), 1.0 - pw, 0.0))
+    parent_scale = np.where(p_rule <= DART, 0.0, np.where(blend, pw, 1.0))
+    child_scale = np.where(blend & (c_rule > DART), 1.0 - pw, 0.0)
+    return sm_scale, parent_scale, child_scale
 
 
 def _lfs_vertex_rows(ctx: _Context, rows: TripletRows, v: np.ndarray, scale: np.ndarray) -> None:
@@ -710,7 +760,6 @@ def _refuse_semi_sharp_on_zero(ctx: _Context) -> None:
     )
 
 
-@one_blas_thread
 def subdivision_operator(
     mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
 ) -> tuple[sp.csr_matrix, ControlMesh]:
@@ -731,8 +780,12 @@ def subdivision_operator(
     configurations listed in the module docstring, MeshError for non-manifold input.
     """
     _check_options(rules, angles, crease_method)
+    return _step(mesh, rules, angles, crease_method, canonical=True)
+
+
+def _step(mesh: ControlMesh, rules: str, angles: str, crease_method: str, canonical: bool) -> tuple[sp.csr_matrix, ControlMesh]:
     ctx = _Context(mesh, crease_method)
-    s = _operator(ctx, rules, angles)
+    s = _operator(ctx, rules, angles, canonical)
     child = _child_mesh(ctx, s @ mesh.vertices)
     return s, child
 
@@ -759,5 +812,5 @@ def subdivide(
             mesh.name,
         )
     for _ in range(steps):
-        _, mesh = subdivision_operator(mesh, rules, angles, crease_method)
+        _, mesh = _step(mesh, rules, angles, crease_method, canonical=False)
     return mesh

@@ -19,7 +19,7 @@ from patching.rules.catmark import (
     DART,
     SMOOTH,
 )
-from patching.topology.tables import Topology
+from patching.topology.cache import topology_of
 
 
 
@@ -70,7 +70,7 @@ class _Context:
     """Topology tables, intervals and tags of one mesh, as flat arrays (read-only)."""
 
     def __init__(self, mesh: ControlMesh, crease_method: str = "uniform") -> None:
-        t = Topology(mesh)
+        t = topology_of(mesh)  # derived from the parent's when the mesh is a child
         self.mesh, self.topo = mesh, t
         self.crease_method = crease_method
         self.H = t.origin.size
@@ -122,10 +122,10 @@ class _Context:
             ee = np.concatenate([s0, s1])
             order = np.argsort(vv, kind="stable")
             vv, ee = vv[order], ee[order]
-            first = np.searchsorted(vv, np.arange(self.nv))
             crease = np.flatnonzero(rule == CREASE)
-            ends[crease, 0] = ee[first[crease]]
-            ends[crease, 1] = ee[first[crease] + 1]
+            first = np.searchsorted(vv, crease)
+            ends[crease, 0] = ee[first]
+            ends[crease, 1] = ee[first + 1]
         return _Level(sharp, vsharp, rule, ends)
 
     @cached_property
@@ -229,17 +229,35 @@ class _Context:
     # -- sectors (seed rules) -----------------------------------------------------------------
     def theta_at(self, lev: _Level, h: np.ndarray) -> np.ndarray:
         """BLZ's theta at origin(h) for the untagged edge of h (NaN where origin is untagged)."""
-        into = self.twin[self.prv]  # corner h is linked to the corner across edge prev(h)
-        link = (into >= 0) & ~lev.sharp[self.eoh[self.prv]]
-        src = np.flatnonzero(link)
-        g = sp.coo_matrix((np.ones(src.size), (src, into[src])), shape=(self.H, self.H))
-        _, label = connected_components(g, directed=False)
-        m = np.bincount(label)
-        alpha = np.bincount(label, weights=math.pi * (self.ksize - 2) / self.ksize)
-        lab = label[h]
+        label, m, alpha = self._sectors(lev)
+        lab = np.maximum(label[h], 0)
         rule = lev.rule[self.origin[h]]
         theta = np.full(h.size, np.nan)
         theta = np.where(rule == DART, 2 * math.pi / m[lab], theta)
         theta = np.where(rule == CREASE, math.pi / m[lab], theta)
         theta = np.where(rule == CORNER, alpha[lab] / m[lab], theta)
         return theta
+
+    def _sectors(self, lev: _Level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sectors of the tagged vertices of ``lev``: (H,) sector of every corner at a tagged
+        vertex (-1 elsewhere), and each sector's number of faces and topological angle (sum of
+        ``pi (k - 2) / k``).  A corner h is linked to the corner across edge prev(h) unless
+        that edge is sharp; only corners at tagged vertices enter the graph.  Cached per level."""
+        cache = self.__dict__.setdefault("_sector_cache", {})
+        hit = cache.get(id(lev))
+        if hit is not None and hit[0] is lev:
+            return hit[1]
+        nodes = np.flatnonzero(lev.rule[self.origin] != SMOOTH)
+        local = np.full(self.H, -1, np.int64)
+        local[nodes] = np.arange(nodes.size)
+        into = self.twin[self.prv[nodes]]  # the corner across edge prev(h): the same vertex
+        link = np.flatnonzero((into >= 0) & ~lev.sharp[self.eoh[self.prv[nodes]]])
+        g = sp.coo_matrix((np.ones(link.size), (link, local[into[link]])), shape=(nodes.size, nodes.size))
+        _, lab = connected_components(g, directed=False)
+        k = self.ksize[nodes]
+        m = np.bincount(lab, minlength=1).astype(np.float64)
+        alpha = np.bincount(lab, weights=math.pi * (k - 2) / k, minlength=1)
+        label = np.full(self.H, -1, np.int64)
+        label[nodes] = lab
+        cache[id(lev)] = (lev, (label, np.maximum(m, 1.0), alpha))
+        return cache[id(lev)][1]

@@ -143,6 +143,15 @@ class Topology:
         out[self.origin[boundary_out]] = boundary_out
         return out
 
+    @cached_property
+    def vertex_outgoing(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ptr (n + 1,), idx (H,)) int64: the outgoing half-edges of vertex v are
+        ``idx[ptr[v]:ptr[v + 1]]``, in no particular order (here ascending; a subdivided mesh's
+        Topology derives them from its parent's in another order)."""
+        ptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(self.origin, minlength=self.n_vertices), out=ptr[1:])
+        return ptr, np.argsort(self.origin, kind="stable").astype(np.int64)
+
     def rotate(self, h: np.ndarray) -> np.ndarray:
         """Next outgoing half-edge around origin(h), clockwise seen from outside: twin(prev(h)).
         -1 where that crosses the boundary."""
@@ -205,11 +214,12 @@ class Topology:
         i = int(np.searchsorted(keys, key))
         return i if i < keys.size and keys[i] == key else -1
 
-    def _tagged_edges(self, tag: dict, kind: str) -> tuple[np.ndarray, np.ndarray, list]:
+    def _tagged_edges(self, tag: dict, kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(edge ids, values, (k, 2) vertex pairs) of an edge tag; TagError for a missing edge."""
         if not tag:
-            return np.zeros(0, np.int64), np.zeros(0), []
+            return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2), np.int64)
         pairs = np.array(list(tag.keys()), dtype=np.int64).reshape(-1, 2)
-        values = np.array(list(tag.values()), dtype=np.float64)
+        values = np.fromiter(tag.values(), dtype=np.float64, count=len(tag))
         keys = self.edges[:, 0] * self.n_vertices + self.edges[:, 1]
         wanted = pairs[:, 0] * self.n_vertices + pairs[:, 1]
         idx = np.minimum(np.searchsorted(keys, wanted), keys.size - 1)
@@ -219,7 +229,7 @@ class Topology:
             raise TagError(
                 f"{kind} tag names edge {a}-{b}, which does not exist", self.mesh.where(kind, (a, b))
             )
-        return idx, values, [tuple(map(int, p)) for p in pairs]
+        return idx, values, pairs
 
     @cached_property
     def strip_interval(self) -> np.ndarray:
@@ -234,11 +244,11 @@ class Topology:
         clash = np.flatnonzero((s_sorted[1:] == s_sorted[:-1]) & (v_sorted[1:] != v_sorted[:-1]))
         if clash.size:
             i, j = order[clash[0]], order[clash[0] + 1]
-            (a, b), (c, d) = pairs[i], pairs[j]
+            (a, b), (c, d) = pairs[i].tolist(), pairs[j].tolist()
             raise KnotError(
                 f"two different intervals on one strip: edge {a}-{b} has {values[i]:g}, "
                 f"edge {c}-{d} has {values[j]:g}",
-                f"{self.mesh.where('interval', pairs[i])} and {self.mesh.where('interval', pairs[j])}",
+                f"{self.mesh.where('interval', (a, b))} and {self.mesh.where('interval', (c, d))}",
             )
         out[strips] = values
         return out
