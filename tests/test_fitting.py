@@ -232,7 +232,7 @@ def _write_obj(path, v, f):
         ("nan", "not finite"),
         ("quads", "face with 4 vertices"),
         ("nonmanifold", "non-manifold edge"),
-        ("bowtie", "a bow-tie"),  # vertex ids: after merging coincident vertices
+        ("bowtie", "vertex 1 is non-manifold"),  # the file's vertex ids (test_cli_errors_name_the_files_vertices)
         ("collinear", "is degenerate"),
         ("remesher", "remesher"),
         ("missing", "no such file"),
@@ -272,6 +272,65 @@ def test_bad_input_through_the_cli(run_cli, tmp_path, case, message):
     assert len(lines) == 1 and lines[0].startswith("nupatch: error:") and message in lines[0], proc.stderr
     assert not out.exists()
     assert list(tmp_path.iterdir()) == ([src] if src.exists() else [])
+
+
+def _corner_obj(path, v, f, first=()):
+    """An OBJ whose every triangle has its own three vertices (as STL stores them, as exporters
+    split vertices at seams), after the ``first`` vertices: the reader merges them, so merged
+    and file indices differ.  Returns the 1-based line of each file vertex."""
+    corners = np.asarray(v)[np.asarray(f).ravel()]
+    rows = np.vstack([np.asarray(first, float).reshape(-1, 3), corners])
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in rows.tolist()]
+    lines += [f"f {3 * k + 1 + len(first)} {3 * k + 2 + len(first)} {3 * k + 3 + len(first)}" for k in range(len(f))]
+    path.write_text("\n".join(lines) + "\n")
+    return rows
+
+
+def test_cli_errors_name_the_files_vertices(cli_main, tmp_path):
+    """Through the CLI, coincident vertices are merged before the checks, but the one-line
+    errors name the file's own indices (the first of the merged vertices) and lines: the
+    bow-tie vertex, the non-manifold edge and its triangles, the degenerate triangle; STL,
+    which indexes no vertices, by position."""
+    out = tmp_path / "out.step"
+    v, f = bowtie()
+    src = tmp_path / "bowtie.obj"
+    rows = _corner_obj(src, v, f, first=[[7.0, 7.0, 7.0]])  # an unused vertex first: shifts every index
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    hub = np.flatnonzero((rows == v[1]).all(axis=1))  # the file's copies of the bow-tie vertex
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"vertex {hub[0]} (merged with {hub.size - 1} coincident vertices) is non-manifold" in err, err
+    assert f"({src}:{hub[0] + 1})" in err, err  # its `v` line
+    assert not out.exists()
+
+    v, f = tetrahedron()
+    v, f = np.vstack([v, [[1, 1, 1]]]), np.vstack([f, [[0, 1, 4]]])
+    src = tmp_path / "fin.obj"
+    rows = _corner_obj(src, v, f)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    a, b = (int(np.flatnonzero((rows == v[i]).all(axis=1))[0]) for i in (0, 1))
+    users = [k for k, tri in enumerate(f.tolist()) if 0 in tri and 1 in tri]
+    assert code == 2 and f"non-manifold edge {a}-{b} shared" in err, err
+    assert f"shared by 3 triangles ({', '.join(map(str, users))})" in err, err
+    assert f"({src}:{len(rows) + users[-1] + 1})" in err, err  # the last triangle's `f` line
+
+    v, f = tetrahedron()
+    v[3] = [0.5, 0.0, 0.0]
+    src = tmp_path / "flat.obj"
+    rows = _corner_obj(src, v, f)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    ids = [int(np.flatnonzero((rows == v[i]).all(axis=1))[0]) for i in f[1]]
+    assert code == 2 and f"triangle 1 (vertices {' '.join(map(str, ids))}) is degenerate" in err, err
+    assert f"({src}:{len(rows) + 2})" in err, err
+
+    v, f = bowtie()
+    src = tmp_path / "bowtie.stl"
+    trimesh.Trimesh(v, f, process=False).export(src)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    assert code == 2 and "vertex (1, 0, 0) is non-manifold" in err and np.array_equal(v[1], [1, 0, 0]), err
 
 
 # -- the pipeline ---------------------------------------------------------------------------
