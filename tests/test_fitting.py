@@ -681,32 +681,41 @@ def _reference_system(mesh, op, layout, feet, points, weights, previous, quadrat
     return K, rhs
 
 
-@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg"])
+def _step_problem(seed: int):
+    """One least-squares step's data on a cube grid (bicubic and EP patches): 300 points near
+    the surface, weights, the foot points, and the ``LeastSquares`` of the mesh."""
+    import patching.fitting.solve as solve
+    from patching.topology import Topology
+
+    V, F = cube_grid(2)
+    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
+    op = patching.build_operator(mesh)
+    layout = PatchLayout.of(op)
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((300, 3))
+    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
+    w = rng.uniform(0.5, 1.5, 300)
+    P = mesh.vertices
+    feet = project(layout, op.matrix @ P, x)
+    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    return mesh, op, layout, x, w, P, feet, ls
+
+
+@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg-frame", "sdm-cg-scaled"])
 def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatch):
     """``LeastSquares.solve`` (per-patch blocks on a fixed pattern, SuperLU in a fixed order,
     or CG) against the dense normal equations assembled row by row: the same step exactly
     (direct), or CG's residual within its tolerance of the residual at the previous points."""
     import patching.fitting.solve as solve
 
-    V, F = cube_grid(2)
-    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
-    op = patching.build_operator(mesh)
-    layout = PatchLayout.of(op)
-    rng = np.random.default_rng(4)
-    x = rng.standard_normal((300, 3))
-    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
-    w = rng.uniform(0.5, 1.5, 300)
-    P = mesh.vertices
-    feet = project(layout, op.matrix @ P, x)
-    from patching.topology import Topology
-
-    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    mesh, op, layout, x, w, P, feet, ls = _step_problem(4)
     Q = None
     if model != "pdm":
         at = evaluate(layout, op.matrix @ P, feet.patch, feet.s, feet.t, order=2)
         Q = solve.distance_model("sdm", at[0], at[1:], x, alpha=1e-3)
-    if model == "sdm-cg":
+    if model.startswith("sdm-cg"):
         monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+        ls.preconditioner = model.split("-")[-1]
     ours = ls.solve(feet, x, w, P, 1e-6, Q)
     K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
     if model == "pdm":
@@ -716,3 +725,21 @@ def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatc
     else:
         before = np.linalg.norm(rhs - K @ P.T.ravel())
         assert np.linalg.norm(rhs - K @ ours.T.ravel()) <= 1.01 * solve.CG_TOLERANCE * before
+
+
+def test_frame_preconditioner_is_exact_for_one_normal(monkeypatch):
+    """With the same Q = n n^T + alpha I at every point, the 3n system is (K (x) Q) + lambda
+    (L^T L (x) I3) = ((1 + alpha) K + lambda L^T L) (x) n n^T + (alpha K + lambda L^T L) (x) P,
+    and the frame preconditioner's two n x n matrices are exactly these: CG converges in one
+    step to the dense solution, whatever the (oblique) normal."""
+    import patching.fitting.solve as solve
+
+    mesh, op, layout, x, w, P, feet, ls = _step_problem(8)
+    normal = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    Q = np.broadcast_to(np.outer(normal, normal) + 1e-6 * np.eye(3), (300, 3, 3)).copy()
+    monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+    ls.preconditioner, ls.cg_tolerance = "frame", 1e-12
+    ours = ls.solve(feet, x, w, P, 1e-6, Q)
+    K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
+    np.testing.assert_allclose(ours.T.ravel(), np.linalg.solve(K, rhs), rtol=0, atol=1e-9 * np.abs(P).max())
+    assert ls.cg_log[-1][0] <= 2, ls.cg_log

@@ -14,8 +14,14 @@ the squared-distance model SDM ([PLH02], [FSLYJ]'s [31]; in the form of [WPL06]:
 second-order approximation with the principal curvatures at the foot point,
 ``solve.distance_model``) or its first-order part, the tangent distance TDM; they converge much
 faster but are no descent method for E: such a step is kept only when it lowers E, else a PDM
-step is taken, and the fit stops when neither lowers E by more than ``tolerance`` of it.  So
-the recorded errors never increase.
+step is taken.  So the recorded errors never increase.
+
+Stopping: when an alternation lowers the RMS distance sqrt(E / sum w) by less than
+``tolerance`` of it (default 1%, i.e. E by about 2%), or after ``max_iterations``.  E tends to
+the approximation error of the control mesh, not to 0, so the rule measures progress against
+the error that is left, in the unit the report uses; the error falls roughly linearly in the
+last alternations (by 10 to 40% per SDM step on the benchmark, then by a few per cent), and an
+alternation that moves the RMS distance by less than 1% is not worth its cost.
 
 Data points: the input vertices, and the triangle centroids while the triangles are fewer
 than ``CENTROIDS_BELOW`` per control face; weights are the triangles' areas shared out
@@ -418,8 +424,8 @@ def fit(
     faces: the control mesh size asked of the remesher (default ``default_faces``).
     control_mesh: a control mesh to start from instead (its topology, tags and positions;
     the remesher is not called).
-    max_iterations: most alternations; tolerance: stop when E falls by less than this
-    fraction; fairing: weight of the step fairing relative to the data term (solve).
+    max_iterations: most alternations; tolerance: stop when an alternation lowers the RMS
+    distance by less than this fraction of it (module docstring); fairing: weight of the step fairing relative to the data term (solve).
     sampling: "auto" (vertices, centroids and lattice points of coarse triangles, module
     docstring) or "vertices" (the input vertices only, weighted by a third of the incident
     areas: for inputs whose vertices are samples of a surface and whose triangles are not).
@@ -508,6 +514,7 @@ def fit(
     pdm_left = pdm_steps
     tried_tdm = False
     alpha = ALPHA_START
+    last_step = None
     for _ in range(max_iterations):
         if errors[-1] <= floor:
             break
@@ -519,7 +526,7 @@ def fit(
             if method != "pdm":
                 at = evaluate(layout, matrix @ P, feet.patch, feet.s, feet.t, order=2 if method == "sdm" else 1)
                 quadratic = distance_model(method, at[0], at[1:], points, alpha, on_boundary)
-            newP = solver.solve(feet, points, weights, P, fairing, quadratic)
+            newP = solver.solve(feet, points, weights, P, fairing, quadratic, guess=last_step)
             t1 = time.perf_counter()
             newfeet = locate(newP, feet)
             timings["solve"] += t1 - t0
@@ -537,11 +544,13 @@ def fit(
         if method != "pdm":
             alpha = max(alpha / 10.0, ALPHA_MIN)
         pdm_left -= 1
-        drop = errors[-1] - e
+        # the fall of the RMS distance sqrt(E / sum w), relative to it
+        drop = 1.0 - np.sqrt(e / errors[-1]) if errors[-1] > 0 else 0.0
+        last_step = newP - P
         P, feet = newP, newfeet
         errors.append(e)
         steps.append(method)
-        if drop <= tolerance * errors[-2]:
+        if drop <= tolerance:
             if not tried_tdm:
                 pdm_left = 0  # point distance has stalled: go on with tangent distance
                 continue
