@@ -29,8 +29,8 @@ TRIANGLE_FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".off": "off", 
 def _obj_triangles(path: Path, text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(vertices, triangles, vertex lines, triangle lines) of an OBJ's `v` and `f` statements,
     in the file's order (1-based, negative relative indices, `a/t/n` forms; other statements
-    ignored); MeshError at the first face of more than three vertices, InputFileError at a
-    malformed number or an index out of range."""
+    ignored; DESIGN's OBJ conventions); MeshError at the first face of more than three
+    vertices, InputFileError at a malformed number or an index that names no vertex."""
     vertices, vlines, faces, flines = [], [], [], []
     lines = text.splitlines()
     number = 0
@@ -60,12 +60,14 @@ def _obj_triangles(path: Path, text: str) -> tuple[np.ndarray, np.ndarray, np.nd
                     i = int(token.split("/")[0])
                 except ValueError:
                     raise InputFileError(f"malformed face index '{token}'", f"{path}:{first}") from None
-                i = i - 1 if i > 0 else len(vertices) + i
-                if not 0 <= i < len(vertices):
-                    raise InputFileError(f"face index {token} names no vertex defined before it", f"{path}:{first}")
-                face.append(i)
+                if i == 0 or (i < 0 and -i > len(vertices)):
+                    raise InputFileError(f"face index {token} names no vertex", f"{path}:{first}")
+                face.append(i - 1 if i > 0 else len(vertices) + i)  # relative: to the vertices so far
             faces.append(face)
             flines.append(first)
+    for face, line in zip(faces, flines):  # absolute indices may name vertices defined later
+        if max(face) >= len(vertices):
+            raise InputFileError(f"face index {max(face) + 1} names no vertex (there are {len(vertices)})", f"{path}:{line}")
     return (np.array(vertices, dtype=np.float64).reshape(-1, 3), np.array(faces, dtype=np.int64).reshape(-1, 3),
             np.array(vlines, dtype=np.int64), np.array(flines, dtype=np.int64))
 

@@ -355,12 +355,13 @@ def _surface_triangles(result, g: int = 10):
 def _independent_distances(tris: "trimesh.Trimesh", result) -> tuple[float, float, float, float]:
     """(max, rms) input -> surface and surface -> input over the diagonal, by
     trimesh.proximity: input vertices and centroids to a fine tessellation of the surface,
-    and points of the surface (the tessellation's vertices and centroids) to the input."""
+    and points of the surface (the tessellation's vertices, 11 x 11 per patch: exact surface
+    points, where the tessellation's centroids lie off it by its chord error) to the input."""
     diag = float(np.linalg.norm(np.ptp(tris.vertices, axis=0)))
     surf = _surface_triangles(result)
     q_in = np.concatenate([tris.vertices, tris.triangles_center])
     _, d_in, _ = trimesh.proximity.closest_point(surf, q_in)
-    q_out = np.concatenate([surf.vertices, surf.triangles_center])
+    q_out = surf.vertices
     _, d_out, _ = trimesh.proximity.closest_point(tris, q_out)
     rms = lambda d: float(np.sqrt(np.mean(d**2)))
     return d_in.max() / diag, rms(d_in) / diag, d_out.max() / diag, rms(d_out) / diag
@@ -499,6 +500,29 @@ def test_read_triangles_formats(tmp_path, suffix):
     back = trimesh.Trimesh(v, f, process=False)
     assert back.is_watertight and back.is_winding_consistent
     assert np.isclose(back.volume, sphere.volume, rtol=1e-6)  # float32 formats: 1e-7 per coordinate
+
+
+def test_obj_reader_forms(tmp_path):
+    """The OBJ reader (nupatch's own, in the file's order): a/t/n and a//n forms, negative
+    (relative) indices, faces before the vertices they name, comments and other statements
+    ignored; the file's lines kept for messages; an index naming no vertex refused by line."""
+    from export.triangles import read_triangle_file
+    from patching.errors import InputFileError
+
+    v, f = tetrahedron()
+    text = ["# tetrahedron", "o tet", f"f {f[0][0] + 1}/1/1 {f[0][1] + 1}/2/2 {f[0][2] + 1}/3/3"]
+    text += [f"v {x} {y} {z}" for x, y, z in v] + ["vt 0 0", "vn 0 0 1", "usemtl m"]
+    text += ["f " + " ".join(f"{i - 4}//1" for i in f[1])]  # relative: -4 is the first vertex
+    text += [f"f {a + 1} {b + 1} {c + 1}  # comment" for a, b, c in f[2:]]
+    src = tmp_path / "tet.obj"
+    src.write_text("\n".join(text) + "\n")
+    got = read_triangle_file(src)
+    np.testing.assert_array_equal(got.vertices, v)
+    np.testing.assert_array_equal(got.triangles, f)
+    assert got.labels.vertex_lines.tolist() == [4, 5, 6, 7] and got.labels.triangle_lines.tolist() == [3, 11, 12, 13]
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    with pytest.raises(InputFileError, match=re.escape(f"face index 4 names no vertex (there are 3) ({src}:4)")):
+        read_triangle_file(src)
 
 
 # -- sharp features, the squared-distance model ------------------------------------------------
