@@ -1,8 +1,9 @@
 """Speed of ``patching.fitting.fit`` ([FSLYJ] sec. 4.1): a ~100k-triangle torus (trimesh's
 generator) fitted with a ~2k-face control mesh; target under 60 s on the 2-core shared box.
 
-Prints one row per run: triangles, control faces, alternations, seconds per stage and in all,
-and the distances both ways relative to the diagonal.  ``--against REV`` also runs the same
+Prints one row per run: triangles, control faces, alternations, seconds per stage and in all
+(wall), the run's CPU seconds (its process, from ``getrusage(RUSAGE_CHILDREN)``), the load
+average at its end, CG iterations, and the distances both ways relative to the diagonal.  ``--against REV`` also runs the same
 fit with the code of git revision REV (extracted to a temporary directory, each run in its own
 process), alternating with the working tree's, so that a shared, noisy machine compares both
 under the same load.  Run by hand:
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -41,12 +43,22 @@ def worker(triangles: int, faces: int, distance: str | None, iterations: int | N
     kwargs = {} if distance is None else {"distance": distance}
     if iterations is not None:
         kwargs["max_iterations"] = iterations
+    from patching.fitting import solve
+
+    solvers = []
+    init = solve.LeastSquares.__init__
+
+    def keep(self, *a, **kw):  # to read the CG iteration count afterwards
+        init(self, *a, **kw)
+        solvers.append(self)
+
+    solve.LeastSquares.__init__ = keep
     result = fit(mesh.vertices, mesh.faces, faces=faces, name="torus", **kwargs)
     total = time.perf_counter() - t0
     r = result.report
     return dict(
         triangles=r.input_triangles, faces=r.control_faces, points=r.data_points, iterations=r.iterations,
-        total=total, timings=r.timings, steps=r.steps,
+        total=total, timings=r.timings, steps=r.steps, cg=sum(getattr(x, "cg_iterations", 0) for x in solvers),
         distances=[r.max_input_to_surface, r.rms_input_to_surface, r.max_surface_to_input, r.rms_surface_to_input],
     )
 
@@ -58,14 +70,20 @@ def spawn(src: Path, args, distance: str | None) -> dict:
         command += ["--iterations", str(args.iterations)]
     if distance is not None:
         command += ["--distance", distance]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     out = subprocess.run(command, check=True, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(src)))
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result["cpu"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    result["load"] = os.getloadavg()[0]
+    return result
 
 
 def row(label: str, r: dict) -> str:
     stages = " ".join(f"{k} {v:.1f}" for k, v in r["timings"].items())
     d = r["distances"]
-    return (f"{label:<22} {r['triangles']:>9} {r['faces']:>6} {r['points']:>7} {r['iterations']:>5} {r['total']:>8.1f}  {stages}"
+    return (f"{label:<22} {r['triangles']:>9} {r['faces']:>6} {r['points']:>7} {r['iterations']:>5} {r['total']:>8.1f}"
+            f" {r['cpu']:>7.1f} {r['load']:>5.1f} {r['cg']:>5}  {stages}"
             f"  | in->s max {d[0]:.1e} rms {d[1]:.1e}; s->in max {d[2]:.1e} rms {d[3]:.1e}")
 
 
@@ -84,7 +102,7 @@ def main() -> None:
         sys.path.insert(0, args.src)
         print(json.dumps(worker(args.triangles, args.faces, args.distance, args.iterations)))  # one model in a worker
         return
-    print(f"{'code':<22} {'triangles':>9} {'faces':>6} {'points':>7} {'iters':>5} {'total s':>8}  stages (s)")
+    print(f"{'code':<22} {'triangles':>9} {'faces':>6} {'points':>7} {'iters':>5} {'total s':>8} {'cpu s':>7} {'load':>5} {'cg':>5}  stages (s)")
     with tempfile.TemporaryDirectory() as tmp:
         old = None
         if args.against:

@@ -43,7 +43,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     import patching
     from export import to_step, write_obj
-    from export.triangles import read_triangles
+    from export.triangles import read_triangle_file
     from patching.fitting import fit
 
     out = Path(args.output)
@@ -57,13 +57,14 @@ def run(args: argparse.Namespace) -> int:
         raise NupatchError(f"--sharp-angle must be between 0 and 180 degrees, not {args.sharp_angle:g}", "command line")
     if not out.resolve().parent.is_dir():
         raise NupatchError("the output's directory does not exist", str(out))
-    vertices, triangles, name = read_triangles(args.input)
+    got = read_triangle_file(args.input)
+    vertices, triangles, name = got.vertices, got.triangles, got.name
     control = patching.read_mesh(args.control_mesh) if args.control_mesh else None
     if not args.quiet:
         print(f"nupatch: fitting {triangles.shape[0]} triangles ...", file=sys.stderr)
     result = fit(
         vertices, triangles, faces=args.faces, control_mesh=control, max_iterations=args.iterations,
-        distance=args.distance, sharp_angle=args.sharp_angle, name=name,
+        distance=args.distance, sharp_angle=args.sharp_angle, name=name, labels=got.labels,
     )
     to_step(result.surface, out)
     if args.save_control_mesh:

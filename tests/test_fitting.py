@@ -232,7 +232,7 @@ def _write_obj(path, v, f):
         ("nan", "not finite"),
         ("quads", "face with 4 vertices"),
         ("nonmanifold", "non-manifold edge"),
-        ("bowtie", "a bow-tie"),  # vertex ids: after merging coincident vertices
+        ("bowtie", "vertex 1 is non-manifold"),  # the file's vertex ids (test_cli_errors_name_the_files_vertices)
         ("collinear", "is degenerate"),
         ("remesher", "remesher"),
         ("missing", "no such file"),
@@ -274,6 +274,65 @@ def test_bad_input_through_the_cli(run_cli, tmp_path, case, message):
     assert list(tmp_path.iterdir()) == ([src] if src.exists() else [])
 
 
+def _corner_obj(path, v, f, first=()):
+    """An OBJ whose every triangle has its own three vertices (as STL stores them, as exporters
+    split vertices at seams), after the ``first`` vertices: the reader merges them, so merged
+    and file indices differ.  Returns the 1-based line of each file vertex."""
+    corners = np.asarray(v)[np.asarray(f).ravel()]
+    rows = np.vstack([np.asarray(first, float).reshape(-1, 3), corners])
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in rows.tolist()]
+    lines += [f"f {3 * k + 1 + len(first)} {3 * k + 2 + len(first)} {3 * k + 3 + len(first)}" for k in range(len(f))]
+    path.write_text("\n".join(lines) + "\n")
+    return rows
+
+
+def test_cli_errors_name_the_files_vertices(cli_main, tmp_path):
+    """Through the CLI, coincident vertices are merged before the checks, but the one-line
+    errors name the file's own indices (the first of the merged vertices) and lines: the
+    bow-tie vertex, the non-manifold edge and its triangles, the degenerate triangle; STL,
+    which indexes no vertices, by position."""
+    out = tmp_path / "out.step"
+    v, f = bowtie()
+    src = tmp_path / "bowtie.obj"
+    rows = _corner_obj(src, v, f, first=[[7.0, 7.0, 7.0]])  # an unused vertex first: shifts every index
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    hub = np.flatnonzero((rows == v[1]).all(axis=1))  # the file's copies of the bow-tie vertex
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"vertex {hub[0]} (merged with {hub.size - 1} coincident vertices) is non-manifold" in err, err
+    assert f"({src}:{hub[0] + 1})" in err, err  # its `v` line
+    assert not out.exists()
+
+    v, f = tetrahedron()
+    v, f = np.vstack([v, [[1, 1, 1]]]), np.vstack([f, [[0, 1, 4]]])
+    src = tmp_path / "fin.obj"
+    rows = _corner_obj(src, v, f)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    a, b = (int(np.flatnonzero((rows == v[i]).all(axis=1))[0]) for i in (0, 1))
+    users = [k for k, tri in enumerate(f.tolist()) if 0 in tri and 1 in tri]
+    assert code == 2 and f"non-manifold edge {a}-{b} shared" in err, err
+    assert f"shared by 3 triangles ({', '.join(map(str, users))})" in err, err
+    assert f"({src}:{len(rows) + users[-1] + 1})" in err, err  # the last triangle's `f` line
+
+    v, f = tetrahedron()
+    v[3] = [0.5, 0.0, 0.0]
+    src = tmp_path / "flat.obj"
+    rows = _corner_obj(src, v, f)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    ids = [int(np.flatnonzero((rows == v[i]).all(axis=1))[0]) for i in f[1]]
+    assert code == 2 and f"triangle 1 (vertices {' '.join(map(str, ids))}) is degenerate" in err, err
+    assert f"({src}:{len(rows) + 2})" in err, err
+
+    v, f = bowtie()
+    src = tmp_path / "bowtie.stl"
+    trimesh.Trimesh(v, f, process=False).export(src)
+    proc = cli_main("fit", src, "-o", out, "-q")
+    code, err = proc.returncode, proc.stderr
+    assert code == 2 and "vertex (1, 0, 0) is non-manifold" in err and np.array_equal(v[1], [1, 0, 0]), err
+
+
 # -- the pipeline ---------------------------------------------------------------------------
 
 
@@ -296,12 +355,13 @@ def _surface_triangles(result, g: int = 10):
 def _independent_distances(tris: "trimesh.Trimesh", result) -> tuple[float, float, float, float]:
     """(max, rms) input -> surface and surface -> input over the diagonal, by
     trimesh.proximity: input vertices and centroids to a fine tessellation of the surface,
-    and points of the surface (the tessellation's vertices and centroids) to the input."""
+    and points of the surface (the tessellation's vertices, 11 x 11 per patch: exact surface
+    points, where the tessellation's centroids lie off it by its chord error) to the input."""
     diag = float(np.linalg.norm(np.ptp(tris.vertices, axis=0)))
     surf = _surface_triangles(result)
     q_in = np.concatenate([tris.vertices, tris.triangles_center])
     _, d_in, _ = trimesh.proximity.closest_point(surf, q_in)
-    q_out = np.concatenate([surf.vertices, surf.triangles_center])
+    q_out = surf.vertices
     _, d_out, _ = trimesh.proximity.closest_point(tris, q_out)
     rms = lambda d: float(np.sqrt(np.mean(d**2)))
     return d_in.max() / diag, rms(d_in) / diag, d_out.max() / diag, rms(d_out) / diag
@@ -440,6 +500,29 @@ def test_read_triangles_formats(tmp_path, suffix):
     back = trimesh.Trimesh(v, f, process=False)
     assert back.is_watertight and back.is_winding_consistent
     assert np.isclose(back.volume, sphere.volume, rtol=1e-6)  # float32 formats: 1e-7 per coordinate
+
+
+def test_obj_reader_forms(tmp_path):
+    """The OBJ reader (nupatch's own, in the file's order): a/t/n and a//n forms, negative
+    (relative) indices, faces before the vertices they name, comments and other statements
+    ignored; the file's lines kept for messages; an index naming no vertex refused by line."""
+    from export.triangles import read_triangle_file
+    from patching.errors import InputFileError
+
+    v, f = tetrahedron()
+    text = ["# tetrahedron", "o tet", f"f {f[0][0] + 1}/1/1 {f[0][1] + 1}/2/2 {f[0][2] + 1}/3/3"]
+    text += [f"v {x} {y} {z}" for x, y, z in v] + ["vt 0 0", "vn 0 0 1", "usemtl m"]
+    text += ["f " + " ".join(f"{i - 4}//1" for i in f[1])]  # relative: -4 is the first vertex
+    text += [f"f {a + 1} {b + 1} {c + 1}  # comment" for a, b, c in f[2:]]
+    src = tmp_path / "tet.obj"
+    src.write_text("\n".join(text) + "\n")
+    got = read_triangle_file(src)
+    np.testing.assert_array_equal(got.vertices, v)
+    np.testing.assert_array_equal(got.triangles, f)
+    assert got.labels.vertex_lines.tolist() == [4, 5, 6, 7] and got.labels.triangle_lines.tolist() == [3, 11, 12, 13]
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    with pytest.raises(InputFileError, match=re.escape(f"face index 4 names no vertex (there are 3) ({src}:4)")):
+        read_triangle_file(src)
 
 
 # -- sharp features, the squared-distance model ------------------------------------------------
@@ -622,32 +705,41 @@ def _reference_system(mesh, op, layout, feet, points, weights, previous, quadrat
     return K, rhs
 
 
-@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg"])
+def _step_problem(seed: int):
+    """One least-squares step's data on a cube grid (bicubic and EP patches): 300 points near
+    the surface, weights, the foot points, and the ``LeastSquares`` of the mesh."""
+    import patching.fitting.solve as solve
+    from patching.topology import Topology
+
+    V, F = cube_grid(2)
+    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
+    op = patching.build_operator(mesh)
+    layout = PatchLayout.of(op)
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((300, 3))
+    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
+    w = rng.uniform(0.5, 1.5, 300)
+    P = mesh.vertices
+    feet = project(layout, op.matrix @ P, x)
+    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    return mesh, op, layout, x, w, P, feet, ls
+
+
+@pytest.mark.parametrize("model", ["pdm", "sdm-direct", "sdm-cg-frame", "sdm-cg-scaled"])
 def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatch):
     """``LeastSquares.solve`` (per-patch blocks on a fixed pattern, SuperLU in a fixed order,
     or CG) against the dense normal equations assembled row by row: the same step exactly
     (direct), or CG's residual within its tolerance of the residual at the previous points."""
     import patching.fitting.solve as solve
 
-    V, F = cube_grid(2)
-    mesh = patching.from_arrays(V * [1.0, 0.8, 1.2], F)
-    op = patching.build_operator(mesh)
-    layout = PatchLayout.of(op)
-    rng = np.random.default_rng(4)
-    x = rng.standard_normal((300, 3))
-    x = 1.1 * x / np.linalg.norm(x, axis=1, keepdims=True)
-    w = rng.uniform(0.5, 1.5, 300)
-    P = mesh.vertices
-    feet = project(layout, op.matrix @ P, x)
-    from patching.topology import Topology
-
-    ls = solve.LeastSquares(op.matrix.tocsr(), layout, solve.umbrella_laplacian(mesh.n_vertices, Topology(mesh).edges))
+    mesh, op, layout, x, w, P, feet, ls = _step_problem(4)
     Q = None
     if model != "pdm":
         at = evaluate(layout, op.matrix @ P, feet.patch, feet.s, feet.t, order=2)
         Q = solve.distance_model("sdm", at[0], at[1:], x, alpha=1e-3)
-    if model == "sdm-cg":
+    if model.startswith("sdm-cg"):
         monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+        ls.preconditioner = model.split("-")[-1]
     ours = ls.solve(feet, x, w, P, 1e-6, Q)
     K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
     if model == "pdm":
@@ -657,3 +749,21 @@ def test_least_squares_step_matches_the_dense_normal_equations(model, monkeypatc
     else:
         before = np.linalg.norm(rhs - K @ P.T.ravel())
         assert np.linalg.norm(rhs - K @ ours.T.ravel()) <= 1.01 * solve.CG_TOLERANCE * before
+
+
+def test_frame_preconditioner_is_exact_for_one_normal(monkeypatch):
+    """With the same Q = n n^T + alpha I at every point, the 3n system is (K (x) Q) + lambda
+    (L^T L (x) I3) = ((1 + alpha) K + lambda L^T L) (x) n n^T + (alpha K + lambda L^T L) (x) P,
+    and the frame preconditioner's two n x n matrices are exactly these: CG converges in one
+    step to the dense solution, whatever the (oblique) normal."""
+    import patching.fitting.solve as solve
+
+    mesh, op, layout, x, w, P, feet, ls = _step_problem(8)
+    normal = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    Q = np.broadcast_to(np.outer(normal, normal) + 1e-6 * np.eye(3), (300, 3, 3)).copy()
+    monkeypatch.setattr(solve, "DIRECT_UNKNOWNS", 0)
+    ls.preconditioner, ls.cg_tolerance = "frame", 1e-12
+    ours = ls.solve(feet, x, w, P, 1e-6, Q)
+    K, rhs = _reference_system(mesh, op, layout, feet, x, w, P, Q, 1e-6)
+    np.testing.assert_allclose(ours.T.ravel(), np.linalg.solve(K, rhs), rtol=0, atol=1e-9 * np.abs(P).max())
+    assert ls.cg_log[-1][0] <= 2, ls.cg_log

@@ -4,7 +4,7 @@
 alternation, the input checks and the report (``fit``), distances for the report
 (``distance``)."""
 
-from .fit import FitReport, FitResult, check_triangles, default_faces, fit
+from .fit import FitReport, FitResult, InputLabels, check_triangles, default_faces, fit
 from .remesh import REMESHERS, quad_remesh
 
-__all__ = ["FitReport", "FitResult", "REMESHERS", "check_triangles", "default_faces", "fit", "quad_remesh"]
+__all__ = ["FitReport", "FitResult", "InputLabels", "REMESHERS", "check_triangles", "default_faces", "fit", "quad_remesh"]

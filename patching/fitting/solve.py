@@ -30,10 +30,19 @@ precomputed minimum-degree order with diagonal pivots: an LDL^T in effect; scipy
 Cholesky).  TDM and SDM couple the coordinates: the 3n x 3n system, unknowns interleaved per
 control point (3 v + c).  Up to ``DIRECT_UNKNOWNS`` unknowns it is factored in the n x n order
 expanded (exact steps, which the recovery of a sampled surface needs); larger systems by
-conjugate gradients for the step P - P_prev, preconditioned by K (x) I3 with K the mean of the
-three diagonal blocks (one n x n factor; the 3n factor costs some 25 times more, and kept as a
-preconditioner across steps it had to be refactored nearly every step, since alpha changes
-tenfold per step).
+conjugate gradients for the step P - P_prev (the 3n factor costs some 25 n x n ones, ~6 s a
+step on the benchmark), to ``CG_TOLERANCE`` of the residual at the previous points or
+``CG_ITERATIONS`` steps.  Preconditioners (``LeastSquares.preconditioner``): "frame" (the
+default, ``_frame_preconditioner``) splits each control point's displacement into the normal
+of its diagonal 3 x 3 block and the tangent plane and factors one n x n matrix for each part
+(exact when every point has the same Q, tested), since the normal and tangential stiffness
+differ by up to 1 / alpha and the tangential one is mostly the fairing's bi-Laplacian; "scaled"
+(``_scaled_preconditioner``) is one n x n factor of the point-distance matrix scaled per
+control point by the diagonal blocks.  At alpha <= 1e-5 neither reaches 1e-4 in 200 steps
+(the frame one 2e-3 to 4e-3 of the residual, the scaled one 3e-3 to 2e-2); the cap is 100
+because the error per alternation does not follow the step's precision (with exact steps,
+the 3n factor, the first SDM steps lowered E by the same fractions, 0.363, 0.412, 0.445, 0.395).
+CG starts from the best multiple of the previous alternation's step (``guess``).
 """
 
 from __future__ import annotations
@@ -52,7 +61,7 @@ DIRECT_UNKNOWNS = 3000
 #: Larger ones by conjugate gradients for the step: tolerance relative to the residual at the
 #: previous points, most iterations (``LeastSquares.solve``).  An inexact step is safe: the
 #: alternation keeps a step only if the error falls.
-CG_TOLERANCE, CG_ITERATIONS = 1e-4, 200
+CG_TOLERANCE, CG_ITERATIONS = 1e-4, 100
 
 
 def umbrella_laplacian(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:
@@ -119,12 +128,12 @@ class LeastSquares:
         self.ltl_map = inverse[start:]
         self.ltl_trace = float(self.ltl.diagonal().mean())
         self.diag = np.searchsorted(unique, np.arange(n, dtype=np.int64) * (n + 1))  # (v, v) entries
-        self.preconditioner = "scaled"
+        self.preconditioner = "frame"  # or "scaled" (module docstring)
         # the same pattern with 3 x 3 blocks, unknowns interleaved (3 v + c): entry k of row i
         # (in-row offset o, row length r) -> 9 indptr[i] + 3 a r + 3 o + b for block (a, b)
         indptr = self.pattern.indptr
         rowlen = np.diff(indptr)
-        row_of = np.repeat(np.arange(n), rowlen)
+        row_of = self.row_of = np.repeat(np.arange(n), rowlen)
         offset = np.arange(self.nnz) - indptr[row_of]
         ab = np.arange(3)
         self.map3 = (9 * indptr[row_of][:, None, None] + 3 * ab[None, :, None] * rowlen[row_of][:, None, None]
@@ -138,6 +147,9 @@ class LeastSquares:
         self.order = None  # the n x n fill-reducing order, from the first system
         self.factors = 0
         self.cg_iterations = 0
+        self.cg_log: list[tuple[int, float]] = []  # (iterations, relative residual) per CG solve
+        self.cg_tolerance = CG_TOLERANCE
+        self.warm = True
 
     # -- assembly -------------------------------------------------------------------------
 
@@ -175,9 +187,10 @@ class LeastSquares:
             self.order = np.argsort(perm)
 
     def solve(self, feet: FootPoints, data: np.ndarray, weights: np.ndarray, previous: np.ndarray,
-              fairing: float, quadratic: np.ndarray | None = None) -> np.ndarray:
+              fairing: float, quadratic: np.ndarray | None = None, guess: np.ndarray | None = None) -> np.ndarray:
         """New control points (n, 3).  ``quadratic``: None for PDM, else (m, 3, 3) symmetric
-        Q_k (module docstring)."""
+        Q_k (module docstring).  ``guess``: (n, 3), a direction for the step (the previous
+        alternation's): CG starts from its best multiple (module docstring)."""
         n = self.n
         parts = self._local(feet)
         data1 = np.zeros(self.nnz)
@@ -221,8 +234,8 @@ class LeastSquares:
         system = sp.csr_matrix((data3, self.indices3, self.indptr3), shape=(3 * n, 3 * n))
         # Conjugate gradients for the step from the previous points (the residual, not the
         # right-hand side, sets the relative tolerance, so the step keeps its precision as the
-        # fit converges), preconditioned by K (x) I3, K the mean of the three diagonal blocks
-        # plus the fairing: one n x n factor in the fixed order instead of the 3n one.
+        # fit converges), preconditioned by n x n factors in the fixed order (module docstring)
+        # instead of the 3n factor.
         x_prev = previous.ravel()
         residual = (rhs + fair_rhs).ravel() - system @ x_prev
         if 3 * n <= DIRECT_UNKNOWNS:  # small: the exact step by the 3n factor
@@ -232,40 +245,87 @@ class LeastSquares:
             self.factors += 1
             return (x_prev + step).reshape(n, 3)
         o = self.order
-        if self.preconditioner == "kron":
-            scale = None
-            base = (blocks6[0] + blocks6[3] + blocks6[5]) / 3.0 + lam * ltl
+        if self.preconditioner == "frame":
+            precondition = self._frame_preconditioner(data3)
         else:
-            # B^1/2 (K (x) I3) B^1/2 with K the point-distance matrix plus the fairing and B_v
-            # the 3n system's diagonal 3 x 3 block at control point v over K_vv: it matches the
-            # diagonal blocks exactly (the normal stiffness and the small tangential one,
-            # alpha plus SDM's curvature terms) and K's coupling between control points
-            base = data1 + lam * ltl
-            blocks = data3[self.map3[self.diag]]  # (n, 3, 3)
-            value, vector = np.linalg.eigh(blocks / base[self.diag][:, None, None])
-            scale = np.einsum("nij,nj,nkj->nik", vector, 1.0 / np.sqrt(np.maximum(value, 1e-300)), vector)
-        lu = _factor(sp.csr_matrix((base, self.pattern.indices, self.pattern.indptr), shape=(n, n))[o][:, o])
-        self.factors += 1
-
-        def precondition(r):
-            r = np.asarray(r).reshape(n, 3)
-            if scale is not None:
-                r = np.einsum("nij,nj->ni", scale, r)
-            z = np.empty((n, 3))
-            z[o] = lu.solve(np.ascontiguousarray(r[o]))
-            if scale is not None:
-                z = np.einsum("nij,nj->ni", scale, z)
-            return z.ravel()
-
+            precondition = self._scaled_preconditioner(data1 + lam * ltl, data3)
         steps = [0]
 
         def count(_):
             steps[0] += 1
 
         pre = LinearOperator(system.shape, matvec=precondition)
-        x, _ = cg(system, residual, rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS, M=pre, callback=count)
+        start = None
+        if guess is not None and self.warm:
+            # the multiple c d of the direction d that minimises the quadratic (Galerkin on d):
+            # never worse than the zero start in the system's norm
+            d = np.asarray(guess, dtype=np.float64).ravel()
+            curvature = float(d @ (system @ d))
+            if curvature > 0.0:
+                start = (float(d @ residual) / curvature) * d
+        x, _ = cg(system, residual, x0=start, rtol=self.cg_tolerance, maxiter=CG_ITERATIONS, M=pre, callback=count)
         self.cg_iterations += steps[0]
+        self.cg_log.append((steps[0], float(np.linalg.norm(system @ x - residual) / max(np.linalg.norm(residual), 1e-300))))
         return (x_prev + x).reshape(n, 3)
+
+    def _scaled_preconditioner(self, base: np.ndarray, data3: np.ndarray):
+        """B^1/2 (K (x) I3) B^1/2 with K the point-distance matrix plus the fairing (``base``,
+        on the n x n pattern) and B_v the 3n system's diagonal 3 x 3 block at control point v
+        over K_vv: it matches the diagonal blocks exactly (the normal stiffness and the small
+        tangential one, alpha plus SDM's curvature terms) and K's coupling between control
+        points.  Returns r -> z."""
+        n, o = self.n, self.order
+        blocks = data3[self.map3[self.diag]]  # (n, 3, 3)
+        value, vector = np.linalg.eigh(blocks / base[self.diag][:, None, None])
+        scale = np.einsum("nij,nj,nkj->nik", vector, 1.0 / np.sqrt(np.maximum(value, 1e-300)), vector)
+        lu = _factor(sp.csr_matrix((base, self.pattern.indices, self.pattern.indptr), shape=(n, n))[o][:, o])
+        self.factors += 1
+
+        def precondition(r):
+            r = np.einsum("nij,nj->ni", scale, np.asarray(r).reshape(n, 3))
+            z = np.empty((n, 3))
+            z[o] = lu.solve(np.ascontiguousarray(r[o]))
+            return np.einsum("nij,nj->ni", scale, z).ravel()
+
+        return precondition
+
+    def _frame_preconditioner(self, data3: np.ndarray):
+        """Normal and tangential parts apart: n_v the unit eigenvector of the largest eigenvalue
+        of the 3n system's diagonal block at control point v (near the surface normal), P_v =
+        I - n_v n_v^T, and two n x n matrices from the blocks A_uv: N_uv = n_u^T A_uv n_v and
+        T_uv = trace(P_u A_uv P_v) / 2.  The preconditioner z = n (N^-1 (n . r)) + P ((T^-1
+        (x) I3) (P r)) is SPD (a sum of two semi-definite parts that together span every
+        direction) and does not depend on how the tangent plane is parametrised.  Normal and
+        tangential stiffness differ by up to 1 / alpha, and the tangential one is the data's
+        small share plus the fairing's bi-Laplacian, whose spectrum the point-distance matrix
+        the ``scaled`` preconditioner uses does not follow.  Returns r -> z."""
+        n, o = self.n, self.order
+        blocks = data3[self.map3]  # (nnz, 3, 3)
+        normal = np.linalg.eigh(blocks[self.diag])[1][:, :, 2]  # (n, 3)
+        rows, cols = self.row_of, self.pattern.indices
+        nu, nv = normal[rows], normal[cols]
+        an = np.einsum("kij,kj->ki", blocks, nv)  # A_uv n_v
+        n_data = np.einsum("ki,ki->k", nu, an)
+        # trace(P_u A P_v) = tr A - n_u.A n_u... expanded: tr A - n_v.A n_v... (P = I - n n^T)
+        ua = np.einsum("ki,kij->kj", nu, blocks)  # n_u^T A_uv
+        t_data = 0.5 * (np.einsum("kii->k", blocks) - np.einsum("kj,kj->k", ua, nu) - np.einsum("ki,ki->k", an, nv)
+                        + np.einsum("ki,ki->k", nu, nv) * n_data)
+        shape = (n, n)
+        lu_n = _factor(sp.csr_matrix((n_data, self.pattern.indices, self.pattern.indptr), shape=shape)[o][:, o])
+        lu_t = _factor(sp.csr_matrix((t_data, self.pattern.indices, self.pattern.indptr), shape=shape)[o][:, o])
+        self.factors += 2
+
+        def precondition(r):
+            r = np.asarray(r).reshape(n, 3)
+            along = np.einsum("ni,ni->n", normal, r)
+            tangential = r - along[:, None] * normal
+            zn, zt = np.empty(n), np.empty((n, 3))
+            zn[o] = lu_n.solve(np.ascontiguousarray(along[o]))
+            zt[o] = lu_t.solve(np.ascontiguousarray(tangential[o]))
+            zt -= np.einsum("ni,ni->n", normal, zt)[:, None] * normal
+            return (zn[:, None] * normal + zt).ravel()
+
+        return precondition
 
 
 def principal_curvatures(su: np.ndarray, sv: np.ndarray, suu: np.ndarray, suv: np.ndarray, svv: np.ndarray):
