@@ -35,9 +35,9 @@ Three rule sets (``rules``):
   (1 - s)(smooth)`` for ``0 < s < 1``; semi-sharp vertices blend the parent and child rules
   with ``Crease::ComputeFractionalWeightAtVertex``.  Sharpness decrements by 1 a step
   (OpenSubdiv's uniform creasing) or, with ``crease_method="chaikin"``, by its Chaikin rule
-  (``_chaikin``: each half of an edge from the semi-sharp edges at its end; the edge and
-  vertex blends then read the halves, as ``Far::PrimvarRefiner`` does).  Uniform intervals
-  only: a non-uniform mesh is refused with a KnotError.
+  (``patching.rules.crease``, shared with Loop: each half of an edge from the semi-sharp
+  edges at its end; the edge and vertex blends then read the halves, as
+  ``Far::PrimvarRefiner`` does).  Uniform intervals only: a non-uniform mesh is refused with a KnotError.
 * ``"seed"`` (default): [TLC].  Uniform intervals: the Biermann-Levin-Zorin rules of its
   section 2 (the same vertex classification; an untagged edge next to a tagged vertex gets
   ``gamma = 3/8 - cos(theta)/4``, theta ``2 pi/m`` at a dart, ``pi/m`` at a crease, ``alpha/m``
@@ -142,8 +142,9 @@ from patching.rules.catmark import (
     curve_vertex_weights,
     tagged_rules_batch,
 )
+from patching.rules.crease import CREASE_METHODS, decrement
 from patching.subdivision.child_mesh import _child_mesh
-from patching.subdivision.context import _Context, _Level, _decrement
+from patching.subdivision.context import _Context, _Level
 from patching.util.sparse_rows import TripletRows
 
 __all__ = [
@@ -157,8 +158,6 @@ __all__ = [
 
 RULE_SETS = ("seed", "opensubdiv", "nurss")
 ANGLE_CHOICES = ("standard", "modified")
-#: How semi-sharp sharpness decays a step (OpenSubdiv's Sdc::Options::CreasingMethod).
-CREASE_METHODS = ("uniform", "chaikin")
 #: Name of the OBJ tag that records the rule set: ``t nupatch_rules 0/0/1 seed``.
 RULES_TAG = "nupatch_rules"
 
@@ -648,7 +647,7 @@ def _fractional_weight(ctx: _Context) -> np.ndarray:
     creasing: the edges of sharpness <= 1), clamped to 1."""
     total = np.zeros(ctx.nv)
     count = np.zeros(ctx.nv)
-    vt = (ctx.vs > 0) & (_decrement(ctx.vs) <= 0)
+    vt = (ctx.vs > 0) & (decrement(ctx.vs) <= 0)
     total[vt] += ctx.vs[vt]
     count[vt] += 1
     for k in (0, 1):
@@ -725,8 +724,8 @@ def subdivision_operator(
     the eigen-polyhedron at non-uniform extraordinary points); crease_method: "uniform"
     (default: sharpness drops by 1) or "chaikin" (OpenSubdiv's ``CREASE_CHAIKIN``, with
     ``rules="opensubdiv"`` only: the two halves of a semi-sharp edge get ``3/4 s + 1/4 (mean
-    of the other semi-sharp edges at that end) - 1``, see ``_chaikin``; the refined mesh's
-    crease tags carry each half's value).
+    of the other semi-sharp edges at that end) - 1``, see ``patching.rules.crease``; the
+    refined mesh's crease tags carry each half's value).
     Raises KnotError for non-uniform intervals under "opensubdiv", UnsupportedError for the
     configurations listed in the module docstring, MeshError for non-manifold input.
     """

@@ -19,41 +19,8 @@ from patching.rules.catmark import (
     DART,
     SMOOTH,
 )
+from patching.rules.crease import child_edge_sharpness, decrement
 from patching.topology.tables import Topology
-
-
-
-
-def _decrement(s: np.ndarray) -> np.ndarray:
-    """OpenSubdiv's uniform creasing: ``s - 1`` (0 when ``s <= 1``), infinite stays infinite."""
-    return np.where(np.isinf(s), np.inf, np.where(s > 1.0, s - 1.0, 0.0))
-
-
-def _chaikin(es: np.ndarray, edges: np.ndarray, nv: int) -> np.ndarray:
-    """OpenSubdiv's Chaikin creasing (``Sdc::Crease::SubdivideEdgeSharpnessesAroundVertex``
-    with ``CREASE_CHAIKIN``): (e, 2) sharpness of the half of every edge at its end
-    ``edges[:, k]``.
-
-    At a vertex with c >= 2 semi-sharp edges (0 < s < infinity) a semi-sharp edge's half gets
-    ``3/4 s + 1/4 (mean of the other c - 1 semi-sharp sharpnesses) - 1`` (0 if that is <= 0);
-    with c = 1 the uniform ``s - 1``; smooth halves stay 0, infinite ones infinite.  The two
-    halves of an edge may differ (each reads its own end's neighbourhood).  A half is never
-    sharper than the largest sharpness at its end minus one, so ``ceil(max s)`` steps still
-    clear every semi-sharp tag."""
-    semi = (es > 0) & np.isfinite(es)
-    total = np.zeros(nv)
-    count = np.zeros(nv)
-    for k in (0, 1):
-        np.add.at(total, edges[semi, k], es[semi])
-        np.add.at(count, edges[semi, k], 1.0)
-    out = np.empty((es.size, 2))
-    finite = np.where(semi, es, 0.0)
-    for k in (0, 1):
-        c, t = count[edges[:, k]], total[edges[:, k]]
-        others = (t - finite) / np.maximum(c - 1.0, 1.0)
-        ch = 0.75 * finite + 0.25 * others - 1.0
-        out[:, k] = np.where(semi & (c > 1), np.where(ch > 0, ch, 0.0), _decrement(es))
-    return out
 
 
 @dataclass
@@ -135,14 +102,11 @@ class _Context:
     @cached_property
     def child_es(self) -> np.ndarray:
         """(e, 2) sharpness of the child half of every edge at its end ``edges[:, k]``."""
-        if self.crease_method == "chaikin":
-            return _chaikin(self.es, self.edges, self.nv)
-        d = _decrement(self.es)
-        return np.stack([d, d], axis=1)
+        return child_edge_sharpness(self.es, self.edges, self.nv, self.crease_method)
 
     @cached_property
     def child(self) -> _Level:
-        return self.level(self.child_es, _decrement(self.vs))
+        return self.level(self.child_es, decrement(self.vs))
 
     @cached_property
     def edge_sharp_weight(self) -> np.ndarray:
