@@ -68,6 +68,8 @@ class _Context:
             topological_corner = self.v_boundary & (self.n_faces_at == 1) & (self.valence == 2)
             vs[topological_corner] = np.inf
         self.vs = vs
+        # [OSD] TRI_SUB_SMOOTH: the smooth edge points beside triangles take other weights.
+        self.smooth_triangles = mesh.triangle_subdivision == "smooth" and bool((self.fsize == 3).any())
         # Vertex touches a non-quad face.
         self.v_nonquad = np.zeros(self.nv, bool)
         self.v_nonquad[self.origin[self.ksize != 4]] = True
@@ -119,6 +121,26 @@ class _Context:
         that the points equal OpenSubdiv's."""
         both = (self.child_es > 0).all(axis=1)
         return np.where(self.es > 0, np.where(both, 1.0, self.es), 0.0)
+
+    @cached_property
+    def smooth_edge_face_weight(self) -> np.ndarray:
+        """(e,) weight f of each of the two face points in the smooth edge point
+        ``(1/2 - f)(a + b) + f (F_0 + F_1)``: Catmull-Clark's 1/4, or, with smooth triangles
+        ([OSD] ``Sdc::Options::TRI_SUB_SMOOTH``, ``Scheme<SCHEME_CATMARK>::
+        assignSmoothMaskForEdge``) on an edge of two faces at least one of which is a triangle,
+        the mean of 0.47 per triangle and 1/4 per other face (both face points get the mean;
+        0.47 is [OSD]'s ``CATMARK_SMOOTH_TRI_EDGE_WEIGHT``, "from Mathematica" in Hbr)."""
+        f = np.full(self.ne, 0.25)
+        if not self.smooth_triangles:
+            return f
+        tri = np.zeros(self.ne)
+        np.add.at(tri, self.eoh, np.where(self.ksize == 3, 0.47, 0.25))
+        two = np.bincount(self.eoh, minlength=self.ne) == 2
+        beside = np.zeros(self.ne, bool)
+        beside[self.eoh[self.ksize == 3]] = True
+        pick = two & beside
+        f[pick] = 0.5 * tri[pick]
+        return f
 
     # -- half-edge helpers --------------------------------------------------------------------
     @cached_property
