@@ -27,11 +27,13 @@ differs by 8e-3 (``osd_hbr_baseline.py`` says why) -- is Far's.  Without the flo
 the input, loop_cube_creases0/1 and loop_fvar_bound2 (sharpness 0.1, 0.2) differ by up to 7e-9.
 
 ``--scheme catmark --levels 3`` compares the catmark_* shapes with nupatch's Catmull-Clark
-(``patching.subdivision``, ``--rules opensubdiv``, uniform or Chaikin creasing).  Measured
-2026-12-04: 78 shapes (9 non-manifold ones refused), 234 shape-levels, all <= 1e-15 of their
-size (catmark_chaikin0/1/2 exactly), except catmark_smoothtris1, whose ``t smoothtriangles
-smooth`` tag selects Far's ``TRI_SUB_SMOOTH`` triangle rule, which nupatch does not implement
-(7e-2); catmark_val2_back2back and catmark_val2_foldover agree in positions (2e-16) but their
+(``patching.subdivision``, ``--rules opensubdiv``, uniform or Chaikin creasing; the file's
+``t smoothtriangles 0/0/1 smooth`` tag, Far's ``TRI_SUB_SMOOTH``, is read by nupatch's OBJ
+reader as ``ControlMesh.triangle_subdivision``).  Measured 2026-12-04: 78 shapes (9
+non-manifold ones refused), 234 shape-levels, all <= 2.4e-14 of their size (catmark_pole360's
+360-term masks; all others <= 5.4e-15, catmark_chaikin0/1/2 exactly), catmark_smoothtris1
+(``TRI_SUB_SMOOTH``) included: 2.2e-16 (7e-2 before nupatch had the rule);
+catmark_val2_back2back and catmark_val2_foldover agree in positions (2e-16) but their
 coincident vertices defeat the nearest-neighbour face check ("NO").
 """
 

@@ -225,8 +225,8 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
 
         from export.curves import subdivide_with_vectors
 
-        if args.crease_method != "uniform" or args.eigen_angles != "standard":
-            raise NupatchError("control vectors take the default --crease-method and --eigen-angles", args.mesh)
+        if args.crease_method != "uniform" or args.eigen_angles != "standard" or args.triangles == "smooth":
+            raise NupatchError("control vectors take the default --crease-method, --eigen-angles and --triangles", args.mesh)
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="control vector ignored")
             mesh = read_control_mesh(mesh_path, args.intervals)
@@ -234,7 +234,9 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
         atomic_write_text(out, text)
         _progress(args, f"{args.steps} step(s) with control vectors, wrote {out}")
         return 0
-    mesh = read_control_mesh(mesh_path, args.intervals)
+    mesh = subdivided.with_triangle_option(read_control_mesh(mesh_path, args.intervals), args)
+    if mesh.triangle_subdivision != "catmark":
+        comment += f", triangles {mesh.triangle_subdivision}"
     refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
     atomic_write_text(out, format_obj(refined, comment) + rules_tag(args.rules) + "\n")
     _progress(args, f"{refined.n_faces} faces from {mesh.n_faces} in {args.steps} step(s), wrote {out} in {time.perf_counter() - start:.2f} s")
@@ -357,6 +359,7 @@ def _parser() -> argparse.ArgumentParser:
 
     from export.formats import FORMATS
     from patching.subdivision.catmark import ANGLE_CHOICES, CREASE_METHODS, RULE_SETS
+    from patching.mesh.control_mesh import TRIANGLE_SUBDIVISIONS
     from export.inputs import add_intervals_argument
 
     p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
@@ -409,6 +412,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--crease-method", choices=CREASE_METHODS, default="uniform",
         help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
+    )
+    p.add_argument(
+        "--triangles", choices=TRIANGLE_SUBDIVISIONS, default=None,
+        help="Catmull-Clark's rule beside triangles: catmark, or smooth (OpenSubdiv's TRI_SUB_SMOOTH, --rules opensubdiv "
+        "only); default: the mesh's 't smoothtriangles 0/0/1 smooth' tag, else catmark",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     from export.subdivided import add_arguments as _subdivided_arguments  # --scheme, --normals

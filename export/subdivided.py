@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # patching.shading (and patching.loop) only when a subdivide 
 
 from .atomic import atomic_output
 
-__all__ = ["OUTPUT_SUFFIXES", "run_subdivide", "split_by_normal", "write_subdivided_glb", "write_subdivided_obj"]
+__all__ = ["OUTPUT_SUFFIXES", "run_subdivide", "split_by_normal", "with_triangle_option", "write_subdivided_glb", "write_subdivided_obj"]
 
 OUTPUT_SUFFIXES = (".obj", ".glb")
 
@@ -87,6 +87,16 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
         Path(tmp).write_bytes(data)
 
 
+def with_triangle_option(mesh: patching.ControlMesh, args: argparse.Namespace) -> patching.ControlMesh:
+    """The mesh with ``--triangles`` as its triangle rule when given, else with its own tag
+    (``t smoothtriangles``)."""
+    import dataclasses
+
+    if getattr(args, "triangles", None) is None:
+        return mesh
+    return dataclasses.replace(mesh, triangle_subdivision=args.triangles)
+
+
 def run_subdivide(args: argparse.Namespace, progress=None) -> int:
     """``nupatch subdivide`` with ``--scheme``/``--normals``/``.glb``."""
     from export.atomic import check_output_path
@@ -104,7 +114,7 @@ def run_subdivide(args: argparse.Namespace, progress=None) -> int:
         raise NupatchError("--normals needs at least one subdivision step (-n 1 or more)", "-n")
     check_output_path(out)
     start = time.perf_counter()
-    mesh = patching.read_mesh(mesh_path)
+    mesh = with_triangle_option(patching.read_mesh(mesh_path), args)
     op = shading_operator(mesh, args.steps, args.scheme, args.normals, args.shading_variant,
                           rules=args.rules, crease_method=args.crease_method)
     result = op.evaluate(mesh.vertices)

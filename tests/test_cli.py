@@ -135,12 +135,12 @@ def test_unsupported_features_are_refused_not_built_wrong(tmp_path, run_cli):
 
 def test_isolated_vertex_and_unknown_tag_warn_and_go_on(tmp_path, run_cli):
     mesh = tmp_path / "t.obj"
-    mesh.write_text(torus_obj(extra="v 9 9 9\nt smoothtriangles 0/0/1 yes\n"))
+    mesh.write_text(torus_obj(extra="v 9 9 9\nt facevaryinginterpolateboundary 1/0/0 1\n"))
     out = tmp_path / "t.step"
     result = run_cli("build", mesh, "-o", out, "-q")
     assert result.returncode == 0, result.stderr
     warnings = [l for l in result.stderr.splitlines() if l.startswith("nupatch: warning:")]
-    assert any("isolated" in w for w in warnings) and any("smoothtriangles" in w for w in warnings)
+    assert any("isolated" in w for w in warnings) and any("facevaryinginterpolateboundary" in w for w in warnings)
     assert out.exists()
 
 

@@ -11,6 +11,7 @@ import pytest
 import patching
 from patching.mesh.obj import parse_obj
 from patching.shading import shading_operator
+from patching.subdivision import subdivide
 
 from tests.conftest import SHAPES  # noqa: E402
 TET = "v 1 1 1\nv -1 -1 1\nv -1 1 -1\nv 1 -1 -1\nf 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n"
@@ -129,3 +130,34 @@ def test_vn_ignored_with_one_warning():
         warnings.simplefilter("always")
         parse_obj("vn 0 0 1\nvn 0 1 0\n" + TET)
     assert sum("vn normals ignored" in str(x.message) for x in w) == 1
+
+
+PYRAMID = "v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nv 1 1 1.5\nf 4 3 2 1\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n"
+
+
+def test_subdivide_smooth_triangles_tag_and_flag(tmp_path, run_cli):
+    """``t smoothtriangles 0/0/1 smooth`` and ``--triangles smooth`` give the points of
+    ``subdivide(rules="opensubdiv")`` on the tagged mesh (the rule is tested against a
+    reference in test_subdivision.py); ``--triangles catmark`` overrides the tag; rules seed
+    refuse it in one line, writing nothing."""
+    tagged, plain = tmp_path / "tagged.obj", tmp_path / "plain.obj"
+    tagged.write_text(PYRAMID + "t smoothtriangles 0/0/1 smooth\n")
+    plain.write_text(PYRAMID)
+    want = subdivide(patching.read_mesh(tagged), 2, rules="opensubdiv").vertices
+    base = subdivide(patching.read_mesh(plain), 2, rules="opensubdiv").vertices
+    assert np.abs(want - base).max() > 1e-3
+
+    def points(src, *flags):
+        out = tmp_path / f"out{len(list(tmp_path.iterdir()))}.obj"
+        res = run_cli("subdivide", src, "-n", "2", "--rules", "opensubdiv", *flags, "-o", out, "-q")
+        assert res.returncode == 0, res.stderr
+        return patching.read_mesh(out).vertices
+
+    assert np.abs(points(tagged) - want).max() == 0
+    assert np.abs(points(plain, "--triangles", "smooth") - want).max() == 0
+    assert np.abs(points(tagged, "--triangles", "catmark") - base).max() == 0
+    out = tmp_path / "seed.obj"
+    _one_line_error(run_cli("subdivide", tagged, "-o", out), out, "TRI_SUB_SMOOTH")
+    _one_line_error(run_cli("subdivide", tagged, "-o", out), out, "tagged.obj:11")
+    step = tmp_path / "tagged.step"
+    _one_line_error(run_cli("build", tagged, "-o", step), step, "tagged.obj:11")

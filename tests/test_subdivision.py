@@ -6,6 +6,7 @@ OpenCASCADE's knot insertion for non-uniform regular regions, and on the OpenSub
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections import defaultdict
@@ -19,7 +20,7 @@ from export import write_obj
 from patching.mesh.obj import read_obj
 from patching.mesh.primitives import open_grid, torus_grid
 from patching.subdivision import limit_points, limit_tangents, subdivide, subdivision_operator
-from tests.conftest import shape_files
+from tests.conftest import SHAPES as SHAPES_DIR, shape_files
 from tests.reference_refinement import occ_periodic_bicubic, occ_refined_poles, polar_disk, refined_ids, ring_ids
 
 # Round-off: every reference point is a short sum of O(1) weights times coordinates of size
@@ -54,11 +55,12 @@ NONMANIFOLD = [p for p in shape_files("catmark_") if p not in SHAPES]
 # The reference: one subdivision step computed point by point with dicts and loops.
 
 
-def reference_step(mesh, rules: str, creasing: str = "uniform"):
+def reference_step(mesh, rules: str, creasing: str = "uniform", triangles: str = "catmark"):
     """New points (face points, edge points by sorted (a, b), vertex points) by the rules as
     published; ``rules`` is "cc" (classic, tags ignored), "opensubdiv" or "blz"; ``creasing``
     "uniform" or "chaikin" (OpenSubdiv's Sdc::Options::CREASE_CHAIKIN, as sdc/crease.cpp and
-    vtr/refinement.cpp apply it)."""
+    vtr/refinement.cpp apply it); ``triangles`` "catmark" or "smooth" (Sdc::Options::
+    TRI_SUB_SMOOTH: catmarkScheme.h's smooth edge mask beside a triangle, Hbr's 0.470)."""
     P = mesh.vertices
     faces = [list(map(int, mesh.face(f))) for f in range(mesh.n_faces)]
     edge_faces = defaultdict(list)
@@ -156,6 +158,10 @@ def reference_step(mesh, rules: str, creasing: str = "uniform"):
             ep[(a, b)] = mid
             continue
         smooth = (P[a] + P[b] + fp[fs[0]] + fp[fs[1]]) / 4
+        if triangles == "smooth" and any(len(faces[f]) == 3 for f in fs):
+            # each face point weighs the mean of 0.47 (triangle) and 0.25 (other face)
+            fw = sum(0.47 if len(faces[f]) == 3 else 0.25 for f in fs) / 2
+            smooth = (0.5 - fw) * (P[a] + P[b]) + fw * (fp[fs[0]] + fp[fs[1]])
         if rules == "blz":
             child = s > 0
             ta, tb = tagged(a, child), tagged(b, child)
@@ -203,8 +209,8 @@ def reference_step(mesh, rules: str, creasing: str = "uniform"):
     return np.array(fp), ep, vp
 
 
-def reference_points(mesh, rules, creasing="uniform"):
-    fp, ep, vp = reference_step(mesh, rules, creasing)
+def reference_points(mesh, rules, creasing="uniform", triangles="catmark"):
+    fp, ep, vp = reference_step(mesh, rules, creasing, triangles)
     edges = sorted(ep)
     return np.concatenate([fp, np.array([ep[k] for k in edges]), vp])
 
@@ -369,6 +375,99 @@ def test_chaikin_limit_points_invariant_and_option_checks():
         subdivide(mesh, crease_method="chaikin")  # seed rules decrement uniformly
     with pytest.raises(UnsupportedError, match="crease method"):
         subdivision_operator(mesh, rules="opensubdiv", crease_method="hbr")
+
+
+def _pyramid(**tags):
+    """A closed square pyramid: one quad and four triangles (quad-triangle and
+    triangle-triangle edges)."""
+    v = [[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1, 1, 1.5]]
+    return from_arrays(v, [[3, 2, 1, 0], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]], **tags)
+
+
+def _grid_with_triangles(**tags):
+    """An open 3 x 3 grid whose middle quad is split into two triangles, jittered."""
+    g = open_grid(4, 4)
+    faces = [list(map(int, g.face(f))) for f in range(g.n_faces)]
+    a, b, c, d = faces.pop(4)
+    faces += [[a, b, c], [a, c, d]]
+    jitter = np.random.default_rng(3).normal(scale=0.1, size=g.vertices.shape)
+    return from_arrays(g.vertices + jitter, faces, **tags)
+
+
+_SMOOTHTRIS = [
+    pytest.param(lambda: _pyramid(triangle_subdivision="smooth"), "uniform", id="pyramid"),
+    pytest.param(
+        lambda: _pyramid(triangle_subdivision="smooth", creases={(0, 4): 0.6, (1, 4): 1.5, (2, 4): 2.25}, corners={2: 0.5}),
+        "chaikin", id="pyramid-semi-sharp-chaikin",
+    ),
+    pytest.param(lambda: _grid_with_triangles(triangle_subdivision="smooth", creases={(5, 10): 0.4}), "uniform", id="grid"),
+    pytest.param(
+        lambda: dataclasses.replace(_read(SHAPES_DIR / "catmark_smoothtris0.obj"), triangle_subdivision="smooth"),
+        "uniform", id="catmark_smoothtris0",
+        marks=pytest.mark.skipif(not (SHAPES_DIR / "catmark_smoothtris0.obj").exists(), reason="opensubdiv-shapes folder absent"),
+    ),
+]
+
+
+@pytest.mark.parametrize("make, creasing", _SMOOTHTRIS)
+def test_smooth_triangles_against_reference(make, creasing):
+    """OpenSubdiv's TRI_SUB_SMOOTH: the first step against the loop reference's triangle edge
+    mask (semi-sharp edges beside triangles blend it with the crease mask); the second step
+    (all quads) is plain Catmull-Clark again; and the rule does change the points."""
+    mesh = make()
+    S, child = subdivision_operator(mesh, rules="opensubdiv", crease_method=creasing)
+    expected = reference_points(mesh, "opensubdiv", creasing, triangles="smooth")
+    assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * _size(mesh)
+    plain = reference_points(mesh, "opensubdiv", creasing)
+    assert np.abs(expected - plain).max() > 1e-3 * _size(mesh)
+    assert child.triangle_subdivision == "smooth"
+    S2, _ = subdivision_operator(child, rules="opensubdiv", crease_method=creasing)
+    assert np.abs(S2 @ child.vertices - reference_points(child, "opensubdiv", creasing)).max() <= TIGHT * _size(mesh)
+
+
+def test_smooth_triangles_quads_only_and_refusals():
+    """On quads the option changes nothing; rules seed/nurss and build refuse it beside
+    triangles (they would silently use Catmull-Clark's triangle rule)."""
+    quads = from_arrays(open_grid(3, 3).vertices, [list(open_grid(3, 3).face(f)) for f in range(4)], triangle_subdivision="smooth")
+    S, _ = subdivision_operator(quads, rules="opensubdiv")
+    S0, _ = subdivision_operator(dataclasses.replace(quads, triangle_subdivision="catmark"), rules="opensubdiv")
+    assert (S != S0).nnz == 0
+    subdivision_operator(quads)  # seed rules: nothing to refuse on quads
+    mesh = _pyramid(triangle_subdivision="smooth")
+    for rules in ("seed", "nurss"):
+        with pytest.raises(UnsupportedError, match="TRI_SUB_SMOOTH"):
+            subdivision_operator(mesh, rules=rules)
+    from patching.operator.build import build_operator
+
+    with pytest.raises(UnsupportedError, match="nupatch subdivide --rules opensubdiv"):
+        build_operator(mesh)
+    from patching.errors import TagError
+
+    with pytest.raises(TagError, match="triangle_subdivision"):
+        _pyramid(triangle_subdivision="loop")
+
+
+def test_smoothtriangles_obj_tag():
+    """``t smoothtriangles``: OpenSubdiv 3's string form, Hbr's 2 (its k_New, the same rule),
+    Hbr's 1 (k_Old, not in OpenSubdiv 3) warned and ignored, anything else an error naming the
+    line; format_obj writes the tag back."""
+    from patching.errors import TagError
+    from patching.mesh.obj import format_obj, parse_obj
+
+    base = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    assert parse_obj(base).triangle_subdivision == "catmark"
+    assert parse_obj(base + "t smoothtriangles 0/0/1 catmark\n").triangle_subdivision == "catmark"
+    smooth = parse_obj(base + "t smoothtriangles 0/0/1 smooth\n")
+    assert smooth.triangle_subdivision == "smooth"
+    assert parse_obj(base + "t smoothtriangles 1/0/0 2\n").triangle_subdivision == "smooth"
+    with pytest.warns(Warning, match="Hbr's old triangle rule"):
+        assert parse_obj(base + "t smoothtriangles 1/0/0 1\n").triangle_subdivision == "catmark"
+    with pytest.raises(TagError, match="smoothtriangles") as err:
+        parse_obj(base + "t smoothtriangles 0/0/1 yes\n", source="x.obj")
+    assert "x.obj:5" in str(err.value)
+    text = format_obj(smooth)
+    assert "t smoothtriangles 0/0/1 smooth" in text and parse_obj(text).triangle_subdivision == "smooth"
+    assert "smoothtriangles" not in format_obj(parse_obj(base))
 
 
 @pytest.mark.skipif(not NONMANIFOLD, reason="opensubdiv-shapes folder absent")

@@ -43,18 +43,14 @@ from .rules import (
     CORNER,
     CREASE,
     DART,
-    INFINITE,
-    child_edge_sharpness,
-    decrement,
     fractional_weight,
     loop_beta,
     vertex_rule,
 )
+from patching.rules.crease import CREASE_METHODS, INFINITE, child_edge_sharpness, decrement
 
 __all__ = ["LoopLevel", "child_topology", "loop_operator", "loop_subdivide", "CREASE_METHODS", "MAX_LOOP_FACES"]
 
-#: How semi-sharp sharpness decays a step ([OSD] ``Sdc::Options::CreasingMethod``).
-CREASE_METHODS = ("uniform", "chaikin")
 #: Largest mesh ``loop_subdivide`` makes (about 1 kB of memory per triangle on the way).
 MAX_LOOP_FACES = 4_000_000
 

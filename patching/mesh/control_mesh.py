@@ -16,10 +16,12 @@ import numpy as np
 
 from patching.errors import KnotError, MeshError, TagError
 
-__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE"]
+__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE", "TRIANGLE_SUBDIVISIONS"]
 
 #: Crease sharpness at or above which an edge is infinitely sharp (docs/input.md, OpenSubdiv's 10).
 INFINITELY_SHARP = 10.0
+#: Triangle rules of Catmull-Clark ([OSD] ``Sdc::Options::TRI_SUB_CATMARK``, ``TRI_SUB_SMOOTH``).
+TRIANGLE_SUBDIVISIONS = ("catmark", "smooth")
 #: Largest coordinate magnitude taken: beyond it STL and glTF (32-bit floats, up to 3.4e38)
 #: would hold infinities, OpenCASCADE's meshing hangs (from 1e77) and volumes overflow.
 MAX_COORDINATE = 1e30
@@ -37,6 +39,9 @@ class ControlMesh:
     intervals: {(a, b): d}, knot interval d >= 0 of edge a-b (a < b); the whole strip gets it.
     creases: {(a, b): s}, sharpness s >= 0 (s >= 10 infinitely sharp).
     corners: {v: s}.  holes: face ids.  interpolate_boundary: 0, 1 or 2 (docs/input.md; default 1).
+    triangle_subdivision: "catmark" (default) or "smooth", [OSD]'s ``Sdc::Options::
+    TriangleSubdivision`` (the OBJ tag ``t smoothtriangles 0/0/1 smooth``): "smooth" changes the
+    smooth edge points beside triangles under ``subdivide(rules="opensubdiv")`` only.
     name: product name for export.  locations: where each item came from, for error messages,
     keyed ("vertex", v), ("face", f), ("interval", (a, b)), ("crease", (a, b)), ("corner", v),
     ("hole", f); values such as "part.obj:12".
@@ -52,6 +57,7 @@ class ControlMesh:
     interpolate_boundary: int = 1
     name: str = "mesh"
     locations: Mapping[tuple, str] = field(default_factory=dict)
+    triangle_subdivision: str = "catmark"
 
     def __repr__(self) -> str:
         """Counts, not arrays: ``ControlMesh('cube', 8 vertices, 6 faces, 0 intervals, ...)``."""
@@ -124,6 +130,7 @@ def from_arrays(
     interpolate_boundary: int = 1,
     name: str = "mesh",
     locations: Mapping[tuple, str] | None = None,
+    triangle_subdivision: str = "catmark",
 ) -> ControlMesh:
     """Build and check a ControlMesh from arrays (docs/input.md, the Python API).
 
@@ -246,6 +253,8 @@ def from_arrays(
             raise TagError(f"hole tag names face {f}, which does not exist", where("hole", f))
     if interpolate_boundary not in (0, 1, 2):
         raise TagError(f"interpolateboundary must be 0, 1 or 2, got {interpolate_boundary}", name)
+    if triangle_subdivision not in TRIANGLE_SUBDIVISIONS:
+        raise TagError(f"triangle_subdivision must be 'catmark' or 'smooth', not {triangle_subdivision!r}", "triangle_subdivision")
 
     return ControlMesh(
         vertices=verts,
@@ -258,4 +267,5 @@ def from_arrays(
         interpolate_boundary=int(interpolate_boundary),
         name=name,
         locations=locations,
+        triangle_subdivision=triangle_subdivision,
     )

@@ -3,7 +3,10 @@
 Reads ``v x y z``, ``f a b c ...`` (1-based, ``a/t/n`` forms, negative relative indices) and
 ``t NAME nint/nfloat/nstring ints... floats... strings...`` with 0-based vertex ids:
 ``interval`` and ``crease`` (vertex pairs; one value for all pairs or one per pair), ``corner``
-(vertices; one value or one per vertex), ``hole`` (faces), ``interpolateboundary`` (0, 1, 2).
+(vertices; one value or one per vertex), ``hole`` (faces), ``interpolateboundary`` (0, 1, 2),
+``smoothtriangles`` ([OSD]'s regression form ``0/0/1 catmark|smooth``, as ``far_utils.h``
+reads it; Hbr's ``1/0/0 2`` is the same rule, ``1/0/0 1`` Hbr's older one, which OpenSubdiv 3
+dropped: ignored with a warning).
 Edge sharpness as [ZBK] sec. 3.5's implementation writes it: ``fs s_0 .. s_{k-1}`` gives the
 next face's k edges, ``as y s_0 .. s_{k-1}`` the next y faces' edges, value i on the edge from
 the face's vertex i to vertex i + 1 in the file's order (the paper says "clockwise", meaning
@@ -30,7 +33,7 @@ __all__ = ["read_obj", "parse_obj", "format_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
 _IGNORED = {"maplib", "usemap", "vt", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
-_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "nupatch_rules"}
+_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "smoothtriangles", "nupatch_rules"}
 
 
 def read_obj(path: str | os.PathLike) -> ControlMesh:
@@ -110,6 +113,7 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
     corners: dict[int, float] = {}
     holes: list[int] = []
     interpolate_boundary = 1
+    options = {"triangle_subdivision": "catmark"}  # mesh-wide tags other than interpolateboundary
     locations: dict[tuple, str] = {}
     pending: list[tuple[list[float], str]] = []  # fs/as sharpness waiting for their faces
     face_sharp: dict[tuple[int, int], float] = {}
@@ -177,7 +181,7 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
                 warned_vn = True
         elif key == "t":
             interpolate_boundary = _parse_tag(
-                parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations
+                parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations, options
             )
         elif key in _IGNORED:
             continue
@@ -207,10 +211,11 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
         interpolate_boundary=interpolate_boundary,
         name=name,
         locations=locations,
+        triangle_subdivision=options["triangle_subdivision"],
     )
 
 
-def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations) -> int:
+def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_boundary, locations, options) -> int:
     if len(parts) < 3:
         raise InputFileError("tag needs a name and counts nint/nfloat/nstring", loc)
     tag = parts[1]
@@ -226,6 +231,7 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
     except ValueError:
         raise InputFileError(f"tag '{tag}' has a non-integer id", loc) from None
     floats = [_number(a, f"{tag} value", loc) for a in args[nint : nint + nfloat]]
+    strings = args[nint + nfloat :]
     if tag == "controlvector":  # read by nupatch subdivide (patching.curves.surface_vectors)
         warnings.warn(NupatchWarning(f"control vector ignored: only 'nupatch subdivide' uses them ({loc})"), stacklevel=3)
         return interpolate_boundary
@@ -273,6 +279,16 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
         if nint != 1 or ints[0] not in (0, 1, 2):
             raise TagError("interpolateboundary takes one integer 0, 1 or 2", loc)
         return ints[0]
+    elif tag == "smoothtriangles":
+        locations[("tag", "smoothtriangles")] = loc
+        if nstring == 1 and nint == 0 and strings[0] in ("catmark", "smooth"):
+            options["triangle_subdivision"] = strings[0]
+        elif nint == 1 and nstring == 0 and ints[0] == 2:  # Hbr's k_New: OpenSubdiv 3's TRI_SUB_SMOOTH
+            options["triangle_subdivision"] = "smooth"
+        elif nint == 1 and nstring == 0 and ints[0] == 1:
+            warnings.warn(NupatchWarning(f"smoothtriangles 1 (Hbr's old triangle rule, not in OpenSubdiv 3) ignored ({loc})"), stacklevel=3)
+        else:
+            raise TagError("smoothtriangles takes one string, catmark or smooth (t smoothtriangles 0/0/1 smooth)", loc)
     return interpolate_boundary
 
 
@@ -298,6 +314,8 @@ def format_obj(mesh: ControlMesh, comment: str = "") -> str:
     parts.append(_repeat("t corner 1/1/0 %d %r\n", sorted(mesh.corners.items())))
     parts.append(_repeat("t hole 1/0/0 %d\n", [(f,) for f in sorted(mesh.holes)]))
     parts.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}\n")
+    if mesh.triangle_subdivision != "catmark":
+        parts.append(f"t smoothtriangles 0/0/1 {mesh.triangle_subdivision}\n")
     return "".join(parts)
 
 

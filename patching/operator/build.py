@@ -55,6 +55,14 @@ def build_operator(
         options, angles=angles, anchors=anchors, interior=interior, g1_solve=g1_solve, refinement=refinement,
         method=method, eigen_angles=eigen_angles,
     )
+    if mesh.triangle_subdivision == "smooth" and (mesh.face_sizes == 3).any():
+        # Refined with rules "seed", whose triangles are Catmull-Clark's: the surface would
+        # silently differ from OpenSubdiv's TRI_SUB_SMOOTH limit surface.
+        raise UnsupportedError(
+            "smooth triangles (t smoothtriangles, OpenSubdiv's TRI_SUB_SMOOTH) are a rule of "
+            "'nupatch subdivide --rules opensubdiv' only: build refines triangles by Catmull-Clark (remove the tag)",
+            mesh.where("tag", "smoothtriangles"),
+        )
     topo = topology or Topology(mesh)
     # Tears are judged on the user's mesh, before any refinement: refining a zero strip
     # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of

@@ -35,8 +35,14 @@ Three rule sets (``rules``):
   (1 - s)(smooth)`` for ``0 < s < 1``; semi-sharp vertices blend the parent and child rules
   with ``Crease::ComputeFractionalWeightAtVertex``.  Sharpness decrements by 1 a step
   (OpenSubdiv's uniform creasing) or, with ``crease_method="chaikin"``, by its Chaikin rule
-  (``_chaikin``: each half of an edge from the semi-sharp edges at its end; the edge and
-  vertex blends then read the halves, as ``Far::PrimvarRefiner`` does).  Uniform intervals
+  (``patching.rules.crease``, shared with Loop: each half of an edge from the semi-sharp
+  edges at its end; the edge and vertex blends then read the halves, as
+  ``Far::PrimvarRefiner`` does).  With the mesh's ``triangle_subdivision="smooth"`` (the
+  OBJ tag ``t smoothtriangles 0/0/1 smooth``, [OSD]'s ``TRI_SUB_SMOOTH``) the smooth edge
+  point of an edge of two faces, at least one a triangle, is ``(1/2 - f)(a + b) + f (F_0 +
+  F_1)`` with f the mean of 0.47 per triangle and 1/4 per other face (``catmarkScheme.h``
+  ``assignSmoothMaskForEdge``; face and vertex points unchanged, so only the first step
+  differs); the other rule sets refuse it on a mesh with triangles.  Uniform intervals
   only: a non-uniform mesh is refused with a KnotError.
 * ``"seed"`` (default): [TLC].  Uniform intervals: the Biermann-Levin-Zorin rules of its
   section 2 (the same vertex classification; an untagged edge next to a tagged vertex gets
@@ -142,8 +148,9 @@ from patching.rules.catmark import (
     curve_vertex_weights,
     tagged_rules_batch,
 )
+from patching.rules.crease import CREASE_METHODS, decrement
 from patching.subdivision.child_mesh import _child_mesh
-from patching.subdivision.context import _Context, _Level, _decrement
+from patching.subdivision.context import _Context, _Level
 from patching.subdivision.quad_rows import quad_operator
 from patching.util.sparse_rows import TripletRows
 
@@ -158,8 +165,6 @@ __all__ = [
 
 RULE_SETS = ("seed", "opensubdiv", "nurss")
 ANGLE_CHOICES = ("standard", "modified")
-#: How semi-sharp sharpness decays a step (OpenSubdiv's Sdc::Options::CreasingMethod).
-CREASE_METHODS = ("uniform", "chaikin")
 #: Name of the OBJ tag that records the rule set: ``t nupatch_rules 0/0/1 seed``.
 RULES_TAG = "nupatch_rules"
 
@@ -203,18 +208,23 @@ def _face_rows(ctx: _Context, rows: TripletRows, faces_mask: np.ndarray) -> None
 
 
 def _cc_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray) -> None:
-    """Catmull-Clark's smooth edge point (a + b + F_0 + F_1) / 4 (face points as centroids)."""
+    """Catmull-Clark's smooth edge point (a + b + F_0 + F_1) / 4 (face points as centroids);
+    beside a triangle with smooth triangles, ``(1/2 - f)(a + b) + f (F_0 + F_1)``
+    (``_Context.smooth_edge_face_weight``)."""
     if e.size == 0:
         return
     sc = np.zeros(ctx.ne)
     sc[e] = scale
+    fw = ctx.smooth_edge_face_weight
     row_e = ctx.nf + e
-    rows.add(row_e, ctx.edges[e, 0], 0.25 * scale)
-    rows.add(row_e, ctx.edges[e, 1], 0.25 * scale)
+    vw = (0.5 - fw[e]) * scale
+    rows.add(row_e, ctx.edges[e, 0], vw)
+    rows.add(row_e, ctx.edges[e, 1], vw)
     ph, php = ctx.face_pairs
     sel = np.flatnonzero(sc[ctx.eoh[ph]] != 0)
     ph, php = ph[sel], php[sel]
-    rows.add(ctx.nf + ctx.eoh[ph], ctx.origin[php], sc[ctx.eoh[ph]] * 0.25 / ctx.ksize[ph])
+    eh = ctx.eoh[ph]
+    rows.add(ctx.nf + eh, ctx.origin[php], sc[eh] * fw[eh] / ctx.ksize[ph])
 
 
 def _tensor_edge_rows(ctx: _Context, rows: TripletRows, e: np.ndarray, scale: np.ndarray) -> None:
@@ -544,6 +554,12 @@ def _operator(ctx: _Context, rules: str, angles: str, canonical: bool = True) ->
     seed = rules in ("seed", "nurss")  # NURSS differs from [TLC]'s rules at smooth EPs only
     if rules == "opensubdiv" and not ctx.uniform:
         _refuse_nonuniform(ctx)
+    if ctx.smooth_triangles and rules != "opensubdiv":
+        raise UnsupportedError(
+            f"smooth triangles (t smoothtriangles, OpenSubdiv's TRI_SUB_SMOOTH) are a rule of "
+            f"--rules opensubdiv, not of rules {rules}: use --rules opensubdiv or --triangles catmark",
+            ctx.mesh.where("tag", "smoothtriangles"),
+        )
     if ctx.uniform:
         s = _uniform_quads(ctx, seed, canonical)
         return _triplet_operator(ctx, rules, angles) if s is None else s
@@ -698,7 +714,7 @@ def _fractional_weight(ctx: _Context) -> np.ndarray:
     creasing: the edges of sharpness <= 1), clamped to 1."""
     total = np.zeros(ctx.nv)
     count = np.zeros(ctx.nv)
-    vt = (ctx.vs > 0) & (_decrement(ctx.vs) <= 0)
+    vt = (ctx.vs > 0) & (decrement(ctx.vs) <= 0)
     total[vt] += ctx.vs[vt]
     count[vt] += 1
     for k in (0, 1):
@@ -774,8 +790,10 @@ def subdivision_operator(
     the eigen-polyhedron at non-uniform extraordinary points); crease_method: "uniform"
     (default: sharpness drops by 1) or "chaikin" (OpenSubdiv's ``CREASE_CHAIKIN``, with
     ``rules="opensubdiv"`` only: the two halves of a semi-sharp edge get ``3/4 s + 1/4 (mean
-    of the other semi-sharp edges at that end) - 1``, see ``_chaikin``; the refined mesh's
-    crease tags carry each half's value).
+    of the other semi-sharp edges at that end) - 1``, see ``patching.rules.crease``; the
+    refined mesh's crease tags carry each half's value).  The mesh's ``triangle_subdivision``
+    ("smooth": [OSD]'s ``TRI_SUB_SMOOTH``, module docstring) is a rule of "opensubdiv"; the
+    other rule sets refuse it on a mesh with triangles (UnsupportedError).
     Raises KnotError for non-uniform intervals under "opensubdiv", UnsupportedError for the
     configurations listed in the module docstring, MeshError for non-manifold input.
     """

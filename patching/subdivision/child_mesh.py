@@ -48,6 +48,7 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
         holes=holes,
         interpolate_boundary=ctx.mesh.interpolate_boundary,
         name=ctx.mesh.name,
+        triangle_subdivision=ctx.mesh.triangle_subdivision,
     )
     # One interval per child strip (docs/knots.md: a value on one edge applies to its strip),
     # on the strip's first edge in the order (halves at edges[:, 0], halves at edges[:, 1],

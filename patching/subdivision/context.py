@@ -19,41 +19,8 @@ from patching.rules.catmark import (
     DART,
     SMOOTH,
 )
+from patching.rules.crease import child_edge_sharpness, decrement
 from patching.topology.cache import topology_of
-
-
-
-
-def _decrement(s: np.ndarray) -> np.ndarray:
-    """OpenSubdiv's uniform creasing: ``s - 1`` (0 when ``s <= 1``), infinite stays infinite."""
-    return np.where(np.isinf(s), np.inf, np.where(s > 1.0, s - 1.0, 0.0))
-
-
-def _chaikin(es: np.ndarray, edges: np.ndarray, nv: int) -> np.ndarray:
-    """OpenSubdiv's Chaikin creasing (``Sdc::Crease::SubdivideEdgeSharpnessesAroundVertex``
-    with ``CREASE_CHAIKIN``): (e, 2) sharpness of the half of every edge at its end
-    ``edges[:, k]``.
-
-    At a vertex with c >= 2 semi-sharp edges (0 < s < infinity) a semi-sharp edge's half gets
-    ``3/4 s + 1/4 (mean of the other c - 1 semi-sharp sharpnesses) - 1`` (0 if that is <= 0);
-    with c = 1 the uniform ``s - 1``; smooth halves stay 0, infinite ones infinite.  The two
-    halves of an edge may differ (each reads its own end's neighbourhood).  A half is never
-    sharper than the largest sharpness at its end minus one, so ``ceil(max s)`` steps still
-    clear every semi-sharp tag."""
-    semi = (es > 0) & np.isfinite(es)
-    total = np.zeros(nv)
-    count = np.zeros(nv)
-    for k in (0, 1):
-        np.add.at(total, edges[semi, k], es[semi])
-        np.add.at(count, edges[semi, k], 1.0)
-    out = np.empty((es.size, 2))
-    finite = np.where(semi, es, 0.0)
-    for k in (0, 1):
-        c, t = count[edges[:, k]], total[edges[:, k]]
-        others = (t - finite) / np.maximum(c - 1.0, 1.0)
-        ch = 0.75 * finite + 0.25 * others - 1.0
-        out[:, k] = np.where(semi & (c > 1), np.where(ch > 0, ch, 0.0), _decrement(es))
-    return out
 
 
 @dataclass
@@ -101,6 +68,8 @@ class _Context:
             topological_corner = self.v_boundary & (self.n_faces_at == 1) & (self.valence == 2)
             vs[topological_corner] = np.inf
         self.vs = vs
+        # [OSD] TRI_SUB_SMOOTH: the smooth edge points beside triangles take other weights.
+        self.smooth_triangles = mesh.triangle_subdivision == "smooth" and bool((self.fsize == 3).any())
         # Vertex touches a non-quad face.
         self.v_nonquad = np.zeros(self.nv, bool)
         self.v_nonquad[self.origin[self.ksize != 4]] = True
@@ -135,14 +104,11 @@ class _Context:
     @cached_property
     def child_es(self) -> np.ndarray:
         """(e, 2) sharpness of the child half of every edge at its end ``edges[:, k]``."""
-        if self.crease_method == "chaikin":
-            return _chaikin(self.es, self.edges, self.nv)
-        d = _decrement(self.es)
-        return np.stack([d, d], axis=1)
+        return child_edge_sharpness(self.es, self.edges, self.nv, self.crease_method)
 
     @cached_property
     def child(self) -> _Level:
-        return self.level(self.child_es, _decrement(self.vs))
+        return self.level(self.child_es, decrement(self.vs))
 
     @cached_property
     def edge_sharp_weight(self) -> np.ndarray:
@@ -155,6 +121,26 @@ class _Context:
         that the points equal OpenSubdiv's."""
         both = (self.child_es > 0).all(axis=1)
         return np.where(self.es > 0, np.where(both, 1.0, self.es), 0.0)
+
+    @cached_property
+    def smooth_edge_face_weight(self) -> np.ndarray:
+        """(e,) weight f of each of the two face points in the smooth edge point
+        ``(1/2 - f)(a + b) + f (F_0 + F_1)``: Catmull-Clark's 1/4, or, with smooth triangles
+        ([OSD] ``Sdc::Options::TRI_SUB_SMOOTH``, ``Scheme<SCHEME_CATMARK>::
+        assignSmoothMaskForEdge``) on an edge of two faces at least one of which is a triangle,
+        the mean of 0.47 per triangle and 1/4 per other face (both face points get the mean;
+        0.47 is [OSD]'s ``CATMARK_SMOOTH_TRI_EDGE_WEIGHT``, "from Mathematica" in Hbr)."""
+        f = np.full(self.ne, 0.25)
+        if not self.smooth_triangles:
+            return f
+        tri = np.zeros(self.ne)
+        np.add.at(tri, self.eoh, np.where(self.ksize == 3, 0.47, 0.25))
+        two = np.bincount(self.eoh, minlength=self.ne) == 2
+        beside = np.zeros(self.ne, bool)
+        beside[self.eoh[self.ksize == 3]] = True
+        pick = two & beside
+        f[pick] = 0.5 * tri[pick]
+        return f
 
     # -- half-edge helpers --------------------------------------------------------------------
     @cached_property
