@@ -472,3 +472,44 @@ def test_grid_of_names_the_extraordinary_vertex():
     assert ids.shape == (6, 5) and closed == (True, True)
     with pytest.raises(UnsupportedError, match="vertex 1 is extraordinary"):
         grid_of(_glued(mesh))
+
+
+def test_build_of_a_cylinder_grid_is_periodic_one_way_and_free_ends_with_interpolateboundary_0(cli_main, tmp_path):
+    """A cylinder (closed around, open along): periodic in u only, clamped in v, equal to the
+    tensor limit; the same grid with interpolateboundary 0 has free ends in v: the n - 3 full
+    spans of the tensor limit without ends (which the no-vector test above checks against
+    scipy's uniform B-spline)."""
+    pytest.importorskip("OCP")
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.GeomAdaptor import GeomAdaptor_Surface
+
+    from patching.curves.surface_vectors import grid_of, tensor_limit
+    from patching.mesh import format_obj
+    from patching.mesh.control_mesh import from_arrays
+
+    m, n = 9, 8
+    a, b = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
+    V = np.stack([np.cos(2 * np.pi * a / m), np.sin(2 * np.pi * a / m), b * 0.5 + 0.1 * np.sin(a)], -1).reshape(-1, 3)
+    F = [[i * n + j, ((i + 1) % m) * n + j, ((i + 1) % m) * n + j + 1, i * n + j + 1] for i in range(m) for j in range(n - 1)]
+    mesh = from_arrays(V, F)
+    ids, closed = grid_of(mesh)
+    assert closed == (True, False) and ids.shape == (m, n)
+    P = mesh.vertices[ids]
+    i0, j0 = [int(x[0]) for x in np.nonzero(ids == 4 * n + 4)]
+    for ib, ends in ((1, (False, True)), (0, (False, False))):
+        src = tmp_path / f"c{ib}.obj"
+        src.write_text(format_obj(mesh, "cyl") + f"t interpolateboundary 1/0/0 {ib}\nt controlvector 1/3/0 {4 * n + 4} 0 0 0.3\n")
+        r = cli_main("build", src, "-o", tmp_path / f"c{ib}.step")
+        assert r.returncode == 0, r.stderr
+        shape, faces = _read_faces(tmp_path / f"c{ib}.step")
+        assert len(faces) == 1 and BRepCheck_Analyzer(shape).IsValid()
+        surf = BRep_Tool.Surface_s(faces[0])
+        bs = GeomAdaptor_Surface(surf).BSpline()
+        assert bs.IsUPeriodic() and not bs.IsVPeriodic()
+        S = tensor_limit(P, (3, 3), (True, False), [("X", i0, j0, math.inf)], [[0, 0, 0.3]], ends=ends)
+        (ua, ub), (va, vb) = S.domain
+        assert vb - va == (n - 1 if ib else n - 3)
+        u, v = np.linspace(ua, ub, 11), np.linspace(va, vb, 9)
+        got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
+        assert np.abs(got - S.evaluate(u, v)).max() < 1e-12 * np.abs(P).max()
