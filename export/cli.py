@@ -133,6 +133,8 @@ def cmd_build(args: argparse.Namespace) -> int:
     from export.pipeline import STAGES, run_build
 
     jobs = _jobs(args)
+    if any(_has_control_vectors(job.mesh) for job in jobs):
+        return _build_grid_with_vectors(args, jobs)
     if len(jobs) == 1 and not args.dask:  # in this process: errors reach main()'s handler (and --debug)
         start = time.perf_counter()
         with _Bar(args, len(STAGES), "stages", f"{Path(jobs[0].mesh).name}: {STAGES[0]}") as bar:
@@ -148,6 +150,33 @@ def cmd_build(args: argparse.Namespace) -> int:
         _progress(args, f"{patches} patches from {faces} faces, wrote {jobs[0].out} ({jobs[0].fmt}) in {time.perf_counter() - start:.2f} s")
         return 0
     return _build_many(args, jobs)
+
+
+def _build_grid_with_vectors(args: argparse.Namespace, jobs: list) -> int:
+    """A regular grid with ``t controlvector`` tags: the exact B-spline face of [KSD] eq. (15)
+    (``export.curves.grid_surface_with_vectors``), periodic in closed directions."""
+    import warnings
+
+    from export.curves import grid_surface_with_vectors, write_surface_step
+    from export.inputs import read_control_mesh
+
+    job = jobs[0]
+    if len(jobs) > 1 or args.dask:
+        raise NupatchError("a mesh with control vectors is built on its own (one MESH, no -j / --dask)", job.mesh)
+    if job.fmt != "step" or str(job.out) == "-":
+        raise NupatchError(f"a grid with control vectors is written as one exact B-spline face: give -o OUT.step, "
+                           f"not {job.fmt}" + (" to standard output" if str(job.out) == "-" else ""), job.mesh)
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="control vector ignored")
+        mesh = read_control_mesh(job.mesh, job.intervals)
+    text = Path(job.mesh).read_text(encoding="utf-8-sig", errors="replace")
+    surface, closed = grid_surface_with_vectors(mesh, text, Path(job.mesh).name)
+    write_surface_step(surface, job.out, mesh.name or Path(job.mesh).stem, periodic=closed)
+    nu, nv = surface.poles.shape[:2]
+    _progress(args, f"one exact B-spline face ({nu} x {nv} poles, bicubic, control vectors) from {mesh.n_faces} faces, "
+              f"wrote {job.out} in {time.perf_counter() - start:.2f} s")
+    return 0
 
 
 def _build_many(args: argparse.Namespace, jobs: list) -> int:

@@ -42,6 +42,7 @@ __all__ = [
     "to_geom_surface",
     "to_face",
     "write_surface_step",
+    "grid_surface_with_vectors",
 ]
 
 
@@ -230,9 +231,14 @@ def _array1(values, kind):
     return arr
 
 
-def to_geom_surface(surface):
+def to_geom_surface(surface, periodic: tuple[bool, bool] = (False, False)):
     """An OpenCASCADE ``Geom_BSplineSurface`` with the poles, knots and degrees of a
-    ``patching.curves.surface_vectors.BSplineSurface`` (non-rational, clamped)."""
+    ``patching.curves.surface_vectors.BSplineSurface`` (non-rational, clamped).
+
+    ``periodic`` (a closed grid direction): the clamped surface is closed there and C^(d-1)
+    across the seam, so OCC's ``SetUPeriodic`` (a periodic C0 seam of multiplicity d) and
+    ``RemoveUKnot`` down to multiplicity 1 give the same surface as a periodic B-spline; the
+    removal is checked by OCC to 1e-10 of the size and refused (OutputError) if it fails."""
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
 
@@ -249,22 +255,80 @@ def to_geom_surface(surface):
     ku, mu = np.unique(surface.knots_u, return_counts=True)
     kv, mv = np.unique(surface.knots_v, return_counts=True)
     du, dv = surface.degrees
-    return Geom_BSplineSurface(P, _array1(ku, float), _array1(kv, float), _array1(mu, int), _array1(mv, int),
-                               int(du), int(dv), False, False)
+    g = Geom_BSplineSurface(P, _array1(ku, float), _array1(kv, float), _array1(mu, int), _array1(mv, int),
+                            int(du), int(dv), False, False)
+    tol = 1e-10 * max(1.0, float(np.abs(poles).max()))
+    if periodic[0]:
+        g.SetUPeriodic()
+        if not g.RemoveUKnot(1, 1, tol):
+            raise OutputError("the closed u direction does not join smoothly at its seam (knot removal failed)")
+    if periodic[1]:
+        g.SetVPeriodic()
+        if not g.RemoveVKnot(1, 1, tol):
+            raise OutputError("the closed v direction does not join smoothly at its seam (knot removal failed)")
+    return g
 
 
-def to_face(surface):
-    """A ``TopoDS_Face`` on the whole B-spline surface (valid: ``BRepCheck_Analyzer``)."""
+def to_face(surface, periodic: tuple[bool, bool] = (False, False)):
+    """A ``TopoDS_Face`` on the whole B-spline surface (valid: ``BRepCheck_Analyzer``);
+    ``periodic`` as in ``to_geom_surface`` (a torus grid: a closed face with seam edges)."""
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
 
-    maker = BRepBuilderAPI_MakeFace(to_geom_surface(surface), 1e-7)
+    maker = BRepBuilderAPI_MakeFace(to_geom_surface(surface, periodic), 1e-7)
     if not maker.IsDone():
         raise UnsupportedError("OpenCASCADE cannot make a face of this surface")
     return maker.Face()
 
 
-def write_surface_step(surface, path: str | os.PathLike, name: str = "surface") -> Path:
+def write_surface_step(surface, path: str | os.PathLike, name: str = "surface",
+                       periodic: tuple[bool, bool] = (False, False)) -> Path:
     """The exact B-spline surface as one STEP face (AP214, mm), atomically."""
     from .step import write_step
 
-    return write_step(to_face(surface), path, name)
+    return write_step(to_face(surface, periodic), path, name)
+
+
+def grid_surface_with_vectors(mesh, text: str, source: str):
+    """``nupatch build`` of a regular quad grid with ``t controlvector`` tags: the exact
+    surface of [KSD] eq. (15) (``surface_vectors.tensor_limit``, bicubic, Catmull-Clark's
+    degree) and whether each direction is closed: ``(BSplineSurface, closed)``, or None when
+    ``text`` has no such tag.
+
+    The mesh's boundary rule decides the open directions' ends: interpolateboundary 1 (the
+    default: boundary creases and corners) clamps them (on the grid this is Catmull-Clark's
+    surface, so the vectors add to what ``nupatch build`` writes without them); 0 (boundary
+    faces give no surface) leaves free ends, the full spans only.  Refused in one line: a mesh
+    that is no regular grid (the first extraordinary vertex named), interpolateboundary 2 (its
+    smoothed corners are no tensor product), crease, corner or hole tags, non-uniform intervals,
+    and a vector closer than ``curve.VECTOR_CLEARANCE[3]`` lines to a clamped boundary.
+    """
+    from patching.curves.curve import VECTOR_CLEARANCE
+    from patching.curves.surface_vectors import grid_of, grid_vectors, parse_vector_tags, tensor_limit
+    from patching.topology.tables import Topology
+
+    vectors, values = parse_vector_tags(text, source)
+    if not vectors:
+        return None
+    if mesh.creases or mesh.corners or len(mesh.holes):
+        what = "crease" if mesh.creases else ("corner" if mesh.corners else "hole")
+        raise UnsupportedError(f"control vectors with {what} tags: the exact grid surface takes only the grid, "
+                               "its boundary rule and the vectors ('nupatch subdivide' refines such meshes)", source)
+    if not np.all(Topology(mesh).edge_interval == 1.0):
+        raise UnsupportedError("control vectors need uniform knot intervals ([KSD] sec. 5 is uniform)", source)
+    if mesh.interpolate_boundary == 2:
+        raise UnsupportedError("control vectors with interpolateboundary 2: its smoothed corners are no tensor "
+                               "product; use 1 (clamped) or 0 (free ends)", source)
+    ids, closed = grid_of(mesh)
+    tvecs = grid_vectors(ids, vectors)
+    sharp = mesh.interpolate_boundary == 1
+    ends = (sharp and not closed[0], sharp and not closed[1])
+    gap = VECTOR_CLEARANCE[3]
+    for (kind, i, j, _), vec in zip(tvecs, vectors):
+        for along, k, size, clamped in (("u", i, ids.shape[0], ends[0]), ("v", j, ids.shape[1], ends[1])):
+            crosses = kind == "X" or (kind == "V" and along == "u") or (kind == "U" and along == "v")
+            if clamped and crosses and min(k, size - 1 - k) < gap:
+                raise UnsupportedError(f"control vector {min(k, size - 1 - k)} grid lines from the clamped boundary: "
+                                       f"bicubic needs {gap}", f"vertex {vec.vertex}")
+    P = mesh.vertices[ids]
+    return tensor_limit(P, (3, 3), closed, tvecs, values, ends=ends), closed
+

@@ -13,7 +13,7 @@ from export.ocp_compat import box_bounds
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
-from OCP.TopAbs import TopAbs_EDGE
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
 from OCP.TopExp import TopExp
 from export.ocp_compat import TopoDS
 from export.ocp_compat import TopTools_IndexedMapOfShape
@@ -351,6 +351,12 @@ def edges_of(shape):
     found = TopTools_IndexedMapOfShape()
     TopExp.MapShapes_s(shape, TopAbs_EDGE, found)
     return [TopoDS.Edge_s(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
+
+
+def faces_of(shape):
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, found)
+    return [TopoDS.Face_s(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
 
 
 

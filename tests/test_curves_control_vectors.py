@@ -92,3 +92,147 @@ def test_odd_vector_at_control_point_minus_limit_point_recovers_a_sharp_corner()
     assert np.allclose(smooth.evaluate(float(v)), limit_v, atol=1e-14)
     c = Curve(P, 3, True, vectors={v: (P[v] - limit_v, math.inf)})
     assert np.allclose(c.evaluate(float(v)), P[v], atol=1e-13)
+
+
+# ---------------------------------------------------------------- corners and vectors together
+def _dfold(knots, d):
+    """Interior knot values of multiplicity >= d."""
+    vals, counts = np.unique(knots, return_counts=True)
+    keep = (counts >= d) & (vals > knots[0]) & (vals < knots[-1])
+    return set(float(x) for x in vals[keep])
+
+
+def _vector_knot(P, d, closed, corners, v):
+    """Where the vector at v sits on the cornered curve: the d-fold knot that an infinitely
+    sharp vector adds to the corner limit (found from the knots, not from the code's rule)."""
+    V = np.ones(P.shape[1])
+    added = _dfold(Curve(P, d, closed, corners=corners, vectors={v: (V, math.inf)}).limit().knots, d) - _dfold(
+        Curve(P, d, closed, corners=corners).limit().knots, d)
+    (t,) = added
+    return t
+
+
+def _uniform_vector_function(d, V, s):
+    """The vector's function on a uniform curve of zero points (no corners, [KSD] eq. (11)),
+    as a function of the offset from its crease knot."""
+    Z = np.zeros((12 * d, len(V)))
+    v = 6 * d
+    f = Curve(Z, d, vectors={v: (V, s)}).limit()
+    (t0,) = _dfold(Curve(Z, d, vectors={v: (V, math.inf)}).limit().knots, d)
+    return lambda x: f.evaluate(t0 + x)
+
+
+def test_vector_with_sharp_ends_starts_and_ends_at_the_end_vertices():
+    """The bug this fixes: vectors made the curve ignore its end tags (free ends, n - d spans)."""
+    rng = np.random.default_rng(5)
+    n, d = 14, 3
+    P = rng.normal(size=(n, 2))
+    ends = {0: math.inf, n - 1: math.inf}
+    c = Curve(P, d, corners=ends, vectors={7: (np.array([0.5, 1.0]), math.inf)}).limit()
+    assert c.domain == Curve(P, d, corners=ends).limit().domain
+    assert np.abs(c.evaluate(c.domain[0]) - P[0]).max() < 1e-13
+    assert np.abs(c.evaluate(c.domain[1]) - P[-1]).max() < 1e-13
+
+
+def _cases():
+    for d in range(2, 8):
+        for closed in (False, True):
+            for cs in (math.inf, 1.0, 2.5 if d % 2 else 2.0):
+                for vs in (math.inf, 2.0):
+                    yield d, closed, cs, vs
+
+
+@pytest.mark.parametrize("d,closed,cs,vs", list(_cases()))
+def test_corners_and_a_vector_superpose_at_the_clearance(d, closed, cs, vs):
+    """A vector VECTOR_CLEARANCE[d] edges from a semi-sharp corner (on either side), the open
+    polygon's ends sharp: the curve minus the vector-free curve is exactly the vector's function
+    of the uniform curve (Table 1's crease function refined s times), so (a) nothing changes
+    outside its 2 floor(d/2) spans, (b) it is linear in the vector."""
+    from patching.curves.curve import VECTOR_CLEARANCE
+
+    rng = np.random.default_rng(d * 100 + int(closed))
+    gap = VECTOR_CLEARANCE[d]
+    u = 2 * gap + 2
+    n = 2 * u + 1
+    P = rng.normal(size=(n, 2))
+    corners = {u: cs} if closed else {0: math.inf, n - 1: math.inf, u: cs}
+    base = Curve(P, d, closed, corners=corners).limit()
+    V1, V2 = rng.normal(size=2), rng.normal(size=2)
+    w = d // 2
+    for v in (u - gap, u + gap):
+        tj = _vector_knot(P, d, closed, corners, v)
+        t = np.linspace(*base.domain, 60 * n + 1)
+        g1 = Curve(P, d, closed, corners=corners, vectors={v: (V1, vs)}).evaluate(t) - base.evaluate(t)
+        g2 = Curve(P, d, closed, corners=corners, vectors={v: (V2, vs)}).evaluate(t) - base.evaluate(t)
+        g12 = Curve(P, d, closed, corners=corners, vectors={v: (V1 + 2 * V2, vs)}).evaluate(t) - base.evaluate(t)
+        outside = np.abs(t - tj) > w + 1e-9
+        assert np.abs(g1[outside]).max() < 1e-13  # (a)
+        assert np.abs(g1[~outside]).max() > 1e-6
+        assert np.abs(g12 - g1 - 2 * g2).max() < 1e-12  # (b)
+        ref = _uniform_vector_function(d, V1, vs)(t[~outside] - tj)
+        assert np.abs(g1[~outside] - ref).max() < 1e-12
+
+
+@pytest.mark.parametrize("d", [3, 4, 5])
+def test_refined_curve_with_corners_and_vectors_has_the_same_limit(d):
+    from patching.curves.curve import VECTOR_CLEARANCE
+
+    rng = np.random.default_rng(d)
+    gap = VECTOR_CLEARANCE[d]
+    n = 3 * gap + 4
+    P = rng.normal(size=(n, 3))
+    corners = {0: math.inf, n - 1: math.inf, n - 1 - gap - 1: 1.0 if d % 2 == 0 else 1.5}
+    c = Curve(P, d, corners=corners, vectors={gap: (rng.normal(size=3), 2.0)})
+    lim = c.limit()
+    t = np.linspace(*lim.domain, 301)
+    for k in (1, 2, 3):
+        ck = c.refine(k)
+        assert np.abs(ck.limit().evaluate(t * 2**k) - lim.evaluate(t)).max() < 1e-12
+
+
+def test_corner_and_vector_refusals():
+    from patching.curves.curve import VECTOR_CLEARANCE
+    from patching.errors import TagError, UnsupportedError
+
+    P = np.random.default_rng(0).normal(size=(20, 2))
+    V = np.array([1.0, 0.0])
+    with pytest.raises(TagError, match="vertex 8 has both a corner tag and a control vector"):
+        Curve(P, 3, corners={8: 2.0}, vectors={8: (V, 1.0)})
+    gap = VECTOR_CLEARANCE[3]
+    with pytest.raises(UnsupportedError, match=f"tagged vertex 0: degree 3 needs {gap}") as e:
+        Curve(P, 3, corners={0: math.inf}, vectors={gap - 1: V})
+    assert f"vertex {gap - 1}" in str(e.value) and "\n" not in str(e.value)
+    Curve(P, 3, corners={0: math.inf}, vectors={gap: V}).limit()  # at the clearance: fine
+    with pytest.raises(UnsupportedError, match="fractional corner sharpness at even degree 4"):
+        Curve(P, 4, corners={3: 1.5}, vectors={12: V})
+
+
+def test_step_of_a_clamped_curve_with_a_vector_equals_evaluate(tmp_path):
+    """(c): the STEP file of both clamped ends and an interior vector, read back with OCC."""
+    pytest.importorskip("OCP")
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+
+    from export import read_step
+    from export.curves import write_curve
+    from export.ocp_compat import TopoDS
+
+    rng = np.random.default_rng(9)
+    for d in (3, 4):
+        n = 16
+        P = rng.normal(size=(n, 3)) * 10
+        c = Curve(P, d, corners={0: math.inf, n - 1: math.inf}, vectors={8: (rng.normal(size=3), math.inf)})
+        out = tmp_path / f"c{d}.step"
+        write_curve(c, out)
+        ex = TopExp_Explorer(read_step(out), TopAbs_EDGE)
+        edge = BRepAdaptor_Curve(TopoDS.Edge_s(ex.Current()))
+        ex.Next()
+        assert not ex.More()
+        lim = c.limit()
+        assert (edge.FirstParameter(), edge.LastParameter()) == pytest.approx(lim.domain, abs=1e-12)
+        t = np.linspace(*lim.domain, 401)
+        occ = np.array([[edge.Value(float(x)).X(), edge.Value(float(x)).Y(), edge.Value(float(x)).Z()] for x in t])
+        size = float(np.abs(P).max())
+        assert np.abs(occ - lim.evaluate(t)).max() < 1e-12 * size
+        assert np.abs(occ[0] - P[0]).max() < 1e-12 * size and np.abs(occ[-1] - P[-1]).max() < 1e-12 * size

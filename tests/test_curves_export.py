@@ -168,9 +168,9 @@ BAD = {
     # even degree: a fractional sharpness has an exact limit (STEP/IGES/DXF) but no polygon
     "fractional even, polygon": ("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 3 0 0\nv 4 0 1\nv 5 0 0\nv 6 1 0\nl 1 2 3 4 5 6 7\n"
                                  "t corner 1/1/0 3 0.5\n", ["-d", "4"], "no polygon"),
-    "fractional even, early": ("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 3 0 0\nv 4 0 1\nv 5 0 0\nv 6 1 0\nv 7 0 0\nv 8 1 0\n"
+    "fractional even, near a tag": ("v 0 0 0\nv 1 0 0\nv 2 1 0\nv 3 0 0\nv 4 0 1\nv 5 0 0\nv 6 1 0\nv 7 0 0\nv 8 1 0\n"
                                "v 9 0 0\nv 10 1 0\nv 11 0 0\nv 12 1 0\nv 13 0 0\nl 1 2 3 4 5 6 7 8 9 10 11 12 13 14\n"
-                               "t corner 1/1/0 3 0.5\nt corner 1/1/0 9 2\n", ["-d", "4"], "largest sharpness"),
+                               "t corner 1/1/0 3 0.5\nt corner 1/1/0 9 2\n", ["-d", "4"], "too close to another tag"),
 }
 
 

@@ -3,7 +3,9 @@ sharpness is fractional blends the smooth and the sharp limits on one knot struc
 central span of length 2 - f, poles (1 - f) X + f c_1).  Checked: continuity in s at the
 integers (both sides), an independent construction of the blend with scipy (least-squares
 spline on the reduced knots), convex hull and C^(d-1), locality, closed polygons, and the
-refusals (an earlier fractional level, a polygon through the fractional step)."""
+refusals (a polygon through the fractional step, a window too near an end); and a fractional
+step before the curve's last level: the last-step blend of its window spliced into the sharp
+branch, checked against the whole-polygon construction and the sharp branch."""
 
 from __future__ import annotations
 
@@ -43,8 +45,6 @@ def test_continuous_in_s_at_the_integers(d, extra):
         return Curve(P, d, corners=tags)
 
     for k, side in ((0, 1), (1, -1), (1, 1), (2, -1)):
-        if extra.get(18) == 2.0 and math.ceil(k + side * 0.5) < 2:
-            continue  # a fractional level below the curve's last one is refused (test_refusals)
         ref = curve(k).limit()
         errs = []
         for eps in (1e-4, 1e-7):
@@ -128,12 +128,16 @@ def test_refusals():
     """An even-degree fractional sharpness below the curve's last level, and a polygon asked
     through the fractional step, are refused in one line; refine up to the step before works."""
     P = _open(4, 1, 24)
-    with pytest.raises(UnsupportedError, match="largest sharpness"):
-        Curve(P, 4, corners={5: 0.5, 15: 1.5})
     c = Curve(P, 4, corners={5: 1.5, 15: 2})
     assert len(c.refine(1).points) > len(P)
     with pytest.raises(UnsupportedError, match="no polygon"):
         c.refine(2)
+    c = Curve(P, 4, corners={5: 1.5, 15: 3})  # the fractional step comes before the last level
+    assert len(c.refine(1).points) > len(P)
+    with pytest.raises(UnsupportedError, match="step 2 blends"):
+        c.refine(2)
+    with pytest.raises(UnsupportedError, match="vertex 3"):  # its window reaches the free end
+        Curve(P, 4, corners={3: 0.5, 15: 3}).limit()
     with pytest.raises(UnsupportedError, match="needs at least|too close|closer"):
         Curve(P, 4, corners={5: 0.5, 7: 0.5}).limit()
 
@@ -190,3 +194,42 @@ def test_between_integers_the_blend_adds_no_motion_of_its_own(d, flat):
         dist.append(r.fun)
     steps = np.diff(np.array(dist)).reshape(3, 4)  # the quarter steps of [0, 1], [1, 2], [2, 3]
     assert all((row > 0).all() or (row < 0).all() for row in steps), steps
+
+
+@pytest.mark.parametrize("d", EVEN)
+def test_fractional_step_before_the_last_level_is_the_window_blend_spliced(d):
+    """s_v = 1.5 (or 0.25) with another tag at s = 3: left of the midpoint the curve is the
+    curve with v's tag alone (the whole-polygon last-step construction, an independent code
+    path), right of it the sharp branch (s_v raised to ceil) shifted by (1 - f) / 2^ceil(s_v),
+    the longer central span; between two early fractional vertices, the curve with the second
+    one alone, shifted by the first's (1 - f) / 2^k.  Exact to 1e-13."""
+    n = 64
+    P = _open(d, 3, n)
+    ends = {0: math.inf, n - 1: math.inf}
+    c = Curve(P, d, corners={**ends, 14: 1.5, 30: 0.25, 48: 3.0}).limit()
+    t = np.linspace(0, c.domain[1], 6001)
+    left = Curve(P, d, corners={**ends, 14: 1.5}).limit()
+    sharp = Curve(P, d, corners={**ends, 14: 2.0, 30: 1.0, 48: 3.0}).limit()
+    middle = Curve(P, d, corners={**ends, 14: 2.0, 30: 0.25}).limit()
+    a, m, b = t < 22, (t > 23) & (t < 37), t > 38
+    assert np.abs(c.evaluate(t[a]) - left.evaluate(t[a])).max() < 1e-13
+    assert np.abs(c.evaluate(t[m]) - middle.evaluate(t[m] - 0.5 / 4)).max() < 1e-13
+    assert np.abs(c.evaluate(t[b]) - sharp.evaluate(t[b] - 0.5 / 4 - 0.75 / 2)).max() < 1e-13
+    assert c.domain[1] == pytest.approx(sharp.domain[1] + 0.5 / 4 + 0.75 / 2, abs=1e-12)
+
+
+def test_early_fractional_step_on_a_closed_polygon_is_continuous_in_s():
+    P = np.random.default_rng(2).normal(size=(60, 2))
+    ref = Curve(P, 4, True, corners={10: 2.0, 40: 3.0}).limit()
+    errs = []
+    for eps in (1e-4, 1e-7):
+        c = Curve(P, 4, True, corners={10: 2.0 - eps, 40: 3.0}).limit()
+        t = np.linspace(0, min(c.domain[1], ref.domain[1]), 3001)
+        errs.append(np.abs(c.evaluate(t) - ref.evaluate(t)).max())
+    assert errs[1] < 1e-5 and errs[1] < 2e-3 * errs[0] + 1e-12, errs
+
+
+def test_overlapping_early_windows_are_refused():
+    P = _open(4, 5, 40)
+    with pytest.raises(UnsupportedError, match="overlap|too close|closer|needs at least"):
+        Curve(P, 4, corners={0: math.inf, 39: math.inf, 14: 1.5, 17: 1.5, 30: 3.0}).limit()

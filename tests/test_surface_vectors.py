@@ -11,7 +11,8 @@ import pytest
 
 from patching.curves.curve import Curve
 from patching.curves.surface_vectors import CROSS, LINE, SurfaceVector, operators, parse_vector_tags, tensor_operators
-from patching.mesh.primitives import torus_grid
+from patching.errors import UnsupportedError
+from patching.mesh.primitives import open_grid, torus_grid
 from patching.subdivision.catmark import subdivision_operator
 from patching.topology.tables import Topology
 from tests.conftest import shape_files
@@ -319,3 +320,196 @@ def test_tensor_limit_exports_as_an_exact_step_b_spline_face(tmp_path):
     got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
     size = np.abs(P).max()
     assert np.abs(got - ref).max() < 1e-12 * size
+
+
+# ------------------------------------------------- nupatch build of a grid with control vectors
+def _read_faces(path):
+    from export import read_step
+    from tests.helpers import faces_of
+
+    shape = read_step(path)
+    return shape, faces_of(shape)
+
+
+def test_build_writes_the_exact_clamped_grid_face(cli_main, tmp_path):
+    """``nupatch build GRID.obj`` with a controlvector tag: one B-spline face, the tensor
+    limit with clamped ends (interpolateboundary 1, the default) to 1e-12; its boundary is the
+    cubic B-spline of the boundary row with the sharp-end rule (scipy on the row extended by
+    odd reflection, 2 P_0 - P_1: independent of the curve code), its corners the corner
+    vertices; the cross vector adds a C0 crease (triple knots) in both directions."""
+    pytest.importorskip("OCP")
+    from OCP.BRep import BRep_Tool
+    from OCP.GeomAdaptor import GeomAdaptor_Surface
+    from scipy.interpolate import BSpline
+
+    from patching.curves.surface_vectors import tensor_limit
+    from patching.mesh import format_obj
+
+    m, n = 9, 8
+    mesh = open_grid(m, n)
+    src = tmp_path / "g.obj"
+    src.write_text(format_obj(mesh, "grid") + f"t controlvector 1/3/0 {4 * n + 3} 0 0 0.7\n")
+    r = cli_main("build", src, "-o", tmp_path / "g.step")
+    assert r.returncode == 0, r.stderr
+    assert "ignored" not in r.stderr
+    _, faces = _read_faces(tmp_path / "g.step")
+    assert len(faces) == 1
+    surf = BRep_Tool.Surface_s(faces[0])
+    bs = GeomAdaptor_Surface(surf).BSpline()
+    assert (bs.UDegree(), bs.VDegree()) == (3, 3) and not bs.IsUPeriodic()
+    assert 3 in [bs.UMultiplicity(i) for i in range(2, bs.NbUKnots())]
+    P = mesh.vertices.reshape(m, n, 3)
+    S = tensor_limit(P, (3, 3), (False, False), [("X", 4, 3, math.inf)], [[0, 0, 0.7]], ends=(True, True))
+    (a, b), (c, e) = S.domain
+    assert (a, b, c, e) == (0.0, m - 1.0, 0.0, n - 1.0)
+    u, v = np.linspace(a, b, 17), np.linspace(c, e, 15)
+    got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
+    assert np.abs(got - S.evaluate(u, v)).max() < 1e-12 * np.abs(P).max()
+    for corner in ((0, 0), (m - 1, 0), (0, n - 1), (m - 1, n - 1)):
+        x, y = (a, b)[corner[0] > 0], (c, e)[corner[1] > 0]
+        assert np.abs(np.array(surf.Value(float(x), float(y)).Coord()) - P[corner]).max() < 1e-12
+    row = P[:, 0]
+    ext = np.r_[[2 * row[0] - row[1]], row, [2 * row[-1] - row[-2]]]
+    ref = BSpline(np.arange(len(ext) + 4, dtype=float), ext, 3)(u + 3)
+    assert np.abs(got[:, 0] - ref).max() < 1e-12
+    # without the tag, 'nupatch build' (Catmull-Clark's G1 patches) is the same surface as the
+    # vector-free tensor limit: adding the vector changes nothing but its crease
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    plain_src = tmp_path / "p.obj"
+    plain_src.write_text(format_obj(mesh, "grid"))
+    assert cli_main("build", plain_src, "-o", tmp_path / "p.step").returncode == 0
+    shape, _ = _read_faces(tmp_path / "p.step")
+    plain = tensor_limit(P, (3, 3), ends=(True, True)).evaluate(u[::4], v[::4]).reshape(-1, 3)
+    for p in plain:
+        dist = BRepExtrema_DistShapeShape(BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex(), shape)
+        assert dist.Value() < 1e-9
+
+
+def test_build_of_a_torus_grid_with_a_vector_is_one_periodic_closed_face(cli_main, tmp_path):
+    """Closed grid directions come out periodic (one face, no free edges, a valid closed
+    shell's worth of surface), equal to the tensor limit to 1e-12."""
+    pytest.importorskip("OCP")
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.GeomAdaptor import GeomAdaptor_Surface
+    from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+
+    from patching.curves.surface_vectors import tensor_limit
+    from patching.mesh import format_obj
+
+    m, n = 8, 7
+    mesh = torus_grid(m, n)
+    src = tmp_path / "t.obj"
+    src.write_text(format_obj(mesh, "torus") + f"t controlvector 2/4/0 {3 * n + 2} {4 * n + 2} 0 0 0.4 2\n"
+                   f"t controlvector 1/3/0 {5 * n + 5} 0 0.3 0\n")
+    r = cli_main("build", src, "-o", tmp_path / "t.step")
+    assert r.returncode == 0, r.stderr
+    shape, faces = _read_faces(tmp_path / "t.step")
+    assert len(faces) == 1 and BRepCheck_Analyzer(shape).IsValid()
+    surf = BRep_Tool.Surface_s(faces[0])
+    bs = GeomAdaptor_Surface(surf).BSpline()
+    assert bs.IsUPeriodic() and bs.IsVPeriodic()
+    free = ShapeAnalysis_FreeBounds(shape, 1e-7, False, False)
+    ex = TopExp_Explorer(free.GetClosedWires(), TopAbs_EDGE)
+    assert not ex.More()  # no free boundary: the face closes on itself in both directions
+    P = mesh.vertices.reshape(m, n, 3)
+    S = tensor_limit(P, (3, 3), (True, True), [("U", 3, 2, 2.0), ("X", 5, 5, math.inf)], [[0, 0, 0.4], [0, 0.3, 0]])
+    (a, b), (c, e) = S.domain
+    u, v = np.linspace(a, b, 13), np.linspace(c, e, 11)
+    got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
+    assert np.abs(got - S.evaluate(u, v)).max() < 1e-12 * np.abs(P).max()
+
+
+@pytest.mark.parametrize("case,needle", [
+    ("ev", "vertex"), ("close", "grid lines from the clamped boundary"), ("ib2", "interpolateboundary 2"),
+    ("stl", "OUT.step"),
+])
+def test_build_with_vectors_refusals(cli_main, tmp_path, case, needle):
+    from patching.mesh import format_obj
+
+    m, n = 7, 7
+    mesh = open_grid(m, n)
+    text = format_obj(mesh, "grid")
+    out = tmp_path / ("g.stl" if case == "stl" else "g.step")
+    if case == "ev":  # a quad glued onto the boundary edge 0-1: vertex 1 is extraordinary
+        text = format_obj(_glued(mesh), "grid") + "t controlvector 1/3/0 24 0 0 1\n"
+        needle = "vertex 1 is extraordinary (valence 4, on the boundary) (vertex 1)"
+    elif case == "close":
+        text += f"t controlvector 1/3/0 {1 * n + 3} 0 0 1\n"
+    elif case == "ib2":
+        text += "t interpolateboundary 1/0/0 2\nt controlvector 1/3/0 24 0 0 1\n"
+    else:
+        text += "t controlvector 1/3/0 24 0 0 1\n"
+    src = tmp_path / "g.obj"
+    src.write_text(text)
+    r = cli_main("build", src, "-o", out)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and needle in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def _glued(mesh):
+    from patching.mesh.control_mesh import from_arrays
+
+    V = np.r_[mesh.vertices, [[-1.0, 0.0, 0.0], [-1.0, 1.0, 0.0]]]
+    n = mesh.n_vertices
+    return from_arrays(V, mesh.face_vertices.reshape(-1, 4).tolist() + [[0, 1, n + 1, n]])
+
+
+def test_grid_of_names_the_extraordinary_vertex():
+    """A grid with a quad glued onto a boundary edge: boundary vertex 1 gets valence 4 (an
+    extraordinary boundary vertex), refused with that vertex named."""
+    from patching.curves.surface_vectors import grid_of
+
+    mesh = open_grid(5, 5)
+    ids, closed = grid_of(mesh)
+    assert ids.shape == (5, 5) and closed == (False, False) and sorted(ids.ravel()) == list(range(25))
+    ids, closed = grid_of(torus_grid(6, 5))
+    assert ids.shape == (6, 5) and closed == (True, True)
+    with pytest.raises(UnsupportedError, match="vertex 1 is extraordinary"):
+        grid_of(_glued(mesh))
+
+
+def test_build_of_a_cylinder_grid_is_periodic_one_way_and_free_ends_with_interpolateboundary_0(cli_main, tmp_path):
+    """A cylinder (closed around, open along): periodic in u only, clamped in v, equal to the
+    tensor limit; the same grid with interpolateboundary 0 has free ends in v: the n - 3 full
+    spans of the tensor limit without ends (which the no-vector test above checks against
+    scipy's uniform B-spline)."""
+    pytest.importorskip("OCP")
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.GeomAdaptor import GeomAdaptor_Surface
+
+    from patching.curves.surface_vectors import grid_of, tensor_limit
+    from patching.mesh import format_obj
+    from patching.mesh.control_mesh import from_arrays
+
+    m, n = 9, 8
+    a, b = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
+    V = np.stack([np.cos(2 * np.pi * a / m), np.sin(2 * np.pi * a / m), b * 0.5 + 0.1 * np.sin(a)], -1).reshape(-1, 3)
+    F = [[i * n + j, ((i + 1) % m) * n + j, ((i + 1) % m) * n + j + 1, i * n + j + 1] for i in range(m) for j in range(n - 1)]
+    mesh = from_arrays(V, F)
+    ids, closed = grid_of(mesh)
+    assert closed == (True, False) and ids.shape == (m, n)
+    P = mesh.vertices[ids]
+    i0, j0 = [int(x[0]) for x in np.nonzero(ids == 4 * n + 4)]
+    for ib, ends in ((1, (False, True)), (0, (False, False))):
+        src = tmp_path / f"c{ib}.obj"
+        src.write_text(format_obj(mesh, "cyl") + f"t interpolateboundary 1/0/0 {ib}\nt controlvector 1/3/0 {4 * n + 4} 0 0 0.3\n")
+        r = cli_main("build", src, "-o", tmp_path / f"c{ib}.step")
+        assert r.returncode == 0, r.stderr
+        shape, faces = _read_faces(tmp_path / f"c{ib}.step")
+        assert len(faces) == 1 and BRepCheck_Analyzer(shape).IsValid()
+        surf = BRep_Tool.Surface_s(faces[0])
+        bs = GeomAdaptor_Surface(surf).BSpline()
+        assert bs.IsUPeriodic() and not bs.IsVPeriodic()
+        S = tensor_limit(P, (3, 3), (True, False), [("X", i0, j0, math.inf)], [[0, 0, 0.3]], ends=ends)
+        (ua, ub), (va, vb) = S.domain
+        assert vb - va == (n - 1 if ib else n - 3)
+        u, v = np.linspace(ua, ub, 11), np.linspace(va, vb, 9)
+        got = np.array([[[*surf.Value(float(x), float(y)).Coord()] for y in v] for x in u])
+        assert np.abs(got - S.evaluate(u, v)).max() < 1e-12 * np.abs(P).max()

@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from .knots import clamp_matrix, insert_knots_matrix
 from .uniform import uniform_knots, uniform_subdivision
 
-__all__ = ["CreaseFunction", "crease_function", "vector_step", "vector_limit", "crease_parameter"]
+__all__ = ["CreaseFunction", "crease_function", "vector_step", "vector_limit", "vectors_on_limit", "crease_parameter"]
 
 
 @dataclass(frozen=True)
@@ -169,12 +169,53 @@ def vector_limit(
         params = [a + ((u - a) % period) for u in params]
     knots2, A = insert_knots_matrix(knots, d, [u for u in sorted(params) for _ in range(d - 1)])
     W = A @ W0.toarray()
+    E = _crease_columns(knots2, d, params, W.shape[0])
+    kc, Cl = clamp_matrix(knots2, d)
+    return kc - kc[0], sp.csr_matrix(Cl @ W), sp.csr_matrix(Cl @ E)
+
+
+def _crease_columns(knots2: np.ndarray, d: int, params, n_poles: int) -> np.ndarray:
+    """N^_d's coefficients at each crease parameter u (already a d-fold knot of ``knots2``)."""
     coef = crease_function(d).coefficients
-    E = np.zeros((W.shape[0], len(params)))
+    E = np.zeros((n_poles, len(params)))
     for e, u in enumerate(params):
         first = int(np.searchsorted(knots2, u - 1e-9, side="left"))
         central = first - 1  # the B-spline with knots (u - 1, u x d, u + 1)
         idx = central + np.arange(len(coef)) - (len(coef) - 1) // 2
         E[idx, e] += coef
-    kc, Cl = clamp_matrix(knots2, d)
-    return kc - kc[0], sp.csr_matrix(Cl @ W), sp.csr_matrix(Cl @ E)
+    return E
+
+
+def vectors_on_limit(
+    knots: np.ndarray, W: sp.csr_matrix, degree: int, vertices
+) -> tuple[np.ndarray, sp.csr_matrix, sp.csr_matrix]:
+    """Infinitely sharp vectors at ``vertices`` added to a limit ``(knots, W)`` of points (a
+    corner limit, ``runs.limit_operator``): ``(knots', W', E)``, poles = W' @ P + E @ V.
+
+    The vector at v sits where v's uniform B-spline is a B-spline of the limit (the pole whose
+    row of W is P_v alone): at its centre (odd d) or half a span after it (even d), as
+    ``crease_parameter`` puts it on the uniform curve.  Its crease knot gets d - 1 more copies and
+    N^_d's coefficients go on the B-splines around it, which must be uniform unit spans
+    (``curve.VECTOR_CLEARANCE`` keeps tags that far away; a breach is a bug, RuntimeError).
+    """
+    d = degree
+    w = d // 2
+    Wr = sp.csr_matrix(W)
+    Wc = Wr.tocsc()
+    params = []
+    for v in vertices:
+        col = Wc.indices[Wc.indptr[v] : Wc.indptr[v + 1]]
+        pure = [int(p) for p in col if Wr.indptr[p + 1] - Wr.indptr[p] == 1 and Wr[p, v] == 1.0]
+        if len(pure) != 1:
+            raise RuntimeError(f"vertex {v} has no uniform B-spline in the limit")
+        p = pure[0]
+        if not np.allclose(np.diff(knots[p : p + d + 2]), 1.0):
+            raise RuntimeError(f"vertex {v}'s B-spline is not uniform in the limit")
+        u = 0.5 * (knots[p] + knots[p + d + 1]) + (0.0 if d % 2 else 0.5)
+        window = knots[(knots > u - w - 1 - 1e-9) & (knots < u + w + 1 + 1e-9)]
+        if len(window) != 2 * w + 3 or not np.allclose(np.diff(window), 1.0):
+            raise RuntimeError(f"the crease function at vertex {v} meets a non-uniform span")
+        params.append(float(u))
+    knots2, A = insert_knots_matrix(knots, d, [u for u in sorted(params) for _ in range(d - 1)], sparse=True)
+    E = _crease_columns(knots2, d, params, A.shape[0])
+    return knots2, (A @ Wr).tocsr(), sp.csr_matrix(E)

@@ -76,6 +76,7 @@ from .uniform import uniform_mask
 __all__ = [
     "SurfaceVector", "LINE", "CROSS", "check_vectors", "vector_step", "refine", "operators", "tensor_operators",
     "parse_vector_tags", "format_vector_tags", "BSplineSurface", "tensor_limit_operator", "tensor_limit",
+    "grid_of", "grid_vectors",
 ]
 
 LINE = "line"
@@ -396,6 +397,7 @@ def tensor_limit_operator(
     degrees: tuple[int, int],
     closed: tuple[bool, bool],
     vectors: list[tuple[str, int, int, float]],
+    ends: tuple[bool, bool] = (False, False),
 ) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix, sp.csr_matrix, tuple[int, int]]:
     """The exact limit of ``tensor_operators``' surface: ``(knots_u, knots_v, W, E, poles_shape)``
     with poles (row-major, pole (a, b) at row ``a * Nv + b``) = W @ P + E @ W_vectors.
@@ -407,16 +409,22 @@ def tensor_limit_operator(
     of them by knot insertion (exact) before the Kronecker products: B_i(u) C_j(v) U_ij is
     ``kron(Wu e_i, Ev_j)``, and so on.  Built from the grid's size, degrees and tags only.
     The surface is C0 along the crease lines of infinitely sharp vectors and C^(d-1) elsewhere.
+    ``ends``: per open direction, sharp (clamped) ends instead of free ones: the curve factors
+    get their end vertices tagged infinitely sharp (``Curve`` composes them with the vectors,
+    which then need ``curve.VECTOR_CLEARANCE[d]`` lines from that boundary).  For d = 3 both
+    ways this is Catmull-Clark's surface with boundary creases and corners (interpolateboundary
+    1) on the grid: the cubic sharp-end rule is the odd reflection across the boundary row.
     """
     (nu, nv), (du, dv), (cu, cv) = shape, degrees, closed
     zu, zv = np.zeros((nu, 2)), np.zeros((nv, 2))
+    tags = {id(zu): _end_tags(nu, cu, ends[0]), id(zv): _end_tags(nv, cv, ends[1])}
 
     def plain(z, d, c):
-        knots, W, _ = Curve(z, d, c).limit_operator()
+        knots, W, _ = Curve(z, d, c, corners=tags[id(z)]).limit_operator()
         return knots, W
 
     def crease(z, d, c, i, s):
-        knots, _, E = Curve(z, d, c, vectors={i: (np.zeros(2), s)}).limit_operator()
+        knots, _, E = Curve(z, d, c, corners=tags[id(z)], vectors={i: (np.zeros(2), s)}).limit_operator()
         return knots, E
 
     facs = []  # per vector: ((knots_u, column_u), (knots_v, column_v))
@@ -442,17 +450,23 @@ def tensor_limit_operator(
     return ku, kv, W, E, (len(ku) - du - 1, len(kv) - dv - 1)
 
 
+def _end_tags(n: int, closed: bool, sharp: bool) -> dict[int, float]:
+    return {0: math.inf, n - 1: math.inf} if sharp and not closed else {}
+
+
 def tensor_limit(
     points,
     degrees: tuple[int, int],
     closed: tuple[bool, bool] = (False, False),
     vectors: list[tuple[str, int, int, float]] | None = None,
     values=None,
+    ends: tuple[bool, bool] = (False, False),
 ) -> BSplineSurface:
     """[KSD] eq. (15) on a regular grid, exactly: the B-spline surface of ``tensor_limit_operator``.
 
     ``points``: (m, n, 3) grid (u along the first index); ``vectors`` as in
-    ``tensor_operators`` with ``values`` (k, 3) one row per vector.
+    ``tensor_operators`` with ``values`` (k, 3) one row per vector; ``ends`` as in
+    ``tensor_limit_operator``.
     """
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 3:
@@ -460,6 +474,139 @@ def tensor_limit(
     m, n, dim = P.shape
     vectors = list(vectors or [])
     V = np.asarray(values if values is not None else np.zeros((0, dim)), dtype=np.float64).reshape(len(vectors), dim)
-    ku, kv, W, E, (Nu, Nv) = tensor_limit_operator((m, n), degrees, closed, vectors)
+    ku, kv, W, E, (Nu, Nv) = tensor_limit_operator((m, n), degrees, closed, vectors, ends)
     poles = W @ P.reshape(m * n, dim) + E @ V
     return BSplineSurface(ku, kv, np.asarray(poles).reshape(Nu, Nv, dim), (int(degrees[0]), int(degrees[1])))
+
+
+def grid_of(mesh: ControlMesh) -> tuple[np.ndarray, tuple[bool, bool]]:
+    """A regular quad grid's vertex ids ``(m, n)`` (u along the first index) and whether each
+    direction is closed: a rectangle, a cylinder (closed in one direction) or a torus.
+
+    Every face a quad, every interior vertex of valence 4, every boundary vertex of 3 (the four
+    corners of a rectangle 2).  Otherwise UnsupportedError naming the first vertex that breaks
+    it (an extraordinary vertex).  The grid is walked face to face across opposite edges
+    from one face; a mesh that passes the valence test but does not close up as a grid (a
+    twisted strip, two components) is refused too.
+    """
+    sizes = np.diff(mesh.face_offsets)
+    if len(sizes) == 0 or (sizes != 4).any():
+        bad = int(np.flatnonzero(sizes != 4)[0]) if len(sizes) else 0
+        raise UnsupportedError("the exact grid surface needs a regular quad grid: a face is not a quad", f"face {bad}")
+    F = mesh.face_vertices.reshape(-1, 4)
+    edge_faces: dict[tuple[int, int], list[int]] = {}
+    for f, quad in enumerate(F.tolist()):
+        for k in range(4):
+            a, b = quad[k], quad[(k + 1) % 4]
+            edge_faces.setdefault((min(a, b), max(a, b)), []).append(f)
+    nv = mesh.n_vertices
+    valence = np.zeros(nv, dtype=int)
+    boundary = np.zeros(nv, dtype=int)
+    for (a, b), fs in edge_faces.items():
+        valence[[a, b]] += 1
+        if len(fs) == 1:
+            boundary[[a, b]] += 1
+        elif len(fs) > 2:
+            raise UnsupportedError("the exact grid surface needs a manifold grid: an edge has more than two faces",
+                                   f"edge {a}-{b}")
+    used = np.zeros(nv, dtype=bool)
+    used[F.ravel()] = True
+    corner = (boundary == 2) & (valence == 2)
+    ok = np.where(boundary > 0, (valence == 3) | corner, valence == 4) | ~used
+    if not ok.all():
+        v = int(np.flatnonzero(~ok)[0])
+        raise UnsupportedError(f"the exact grid surface needs a regular grid: vertex {v} is extraordinary "
+                               f"(valence {valence[v]}{', on the boundary' if boundary[v] else ''})", f"vertex {v}")
+
+    def across(f: int, a: int, b: int) -> int:
+        """The other face of edge a-b (-1 on the boundary)."""
+        other = [g for g in edge_faces[(min(a, b), max(a, b))] if g != f]
+        return other[0] if other else -1
+
+    def oriented(g: int, a: int, b: int) -> tuple[int, int, int, int]:
+        """Face g's corners as (a, b, c, d) going round from edge a-b (a -> b along g's order or back)."""
+        q = F[g].tolist()
+        i = q.index(a)
+        step = 1 if q[(i + 1) % 4] == b else -1
+        return tuple(q[(i + step * k) % 4] for k in range(4))  # type: ignore[return-value]
+
+    face_key = {tuple(sorted(quad)): f for f, quad in enumerate(F.tolist())}
+
+    def face_of(quad) -> int:
+        return face_key[tuple(sorted(quad))]
+
+    # start at face 0 with corners (a, b, c, d): u along a -> b, v along a -> d; walk back to a
+    # boundary in each direction (or round, closed)
+    q = tuple(F[0].tolist())
+
+    def walk(q, forward: bool, along_u: bool):
+        """Faces from q stepping +-u or +-v until the boundary or back to q: list of oriented quads."""
+        out = [q]
+        while True:
+            a, b, c, d = out[-1]
+            if along_u:
+                e0, e1 = (b, c) if forward else (a, d)
+            else:
+                e0, e1 = (d, c) if forward else (a, b)
+            f = face_of(out[-1])
+            g = across(f, e0, e1)
+            if g < 0:
+                return out, False
+            if along_u:
+                r = oriented(g, e0, e1)  # g = (e0, e1, ., .): e0-e1 is its left (forward) or right edge
+                nq = (e0, r[3], r[2], e1) if forward else (r[3], e0, e1, r[2])
+            else:
+                r = oriented(g, e0, e1)
+                nq = (e0, e1, r[2], r[3]) if forward else (r[3], r[2], e1, e0)
+            if face_of(nq) == face_of(out[0]):
+                return out, True
+            if len(out) > len(F):
+                raise UnsupportedError("the exact grid surface needs a regular grid: the faces do not close up")
+            out.append(nq)
+
+    back_u, cu = walk(q, False, True)
+    q = back_u[-1] if not cu else q
+    back_v, cv = walk(q, False, False)
+    q = back_v[-1] if not cv else q
+    first_col, _ = walk(q, True, False)
+    rows = [walk(fq, True, True)[0] for fq in first_col]
+    fm, fn = len(rows[0]), len(first_col)  # faces along u and v
+    if any(len(r) != fm for r in rows) or fm * fn != len(F):
+        raise UnsupportedError("the exact grid surface needs a regular grid: the faces do not form one grid")
+    m, n = fm + (0 if cu else 1), fn + (0 if cv else 1)
+    ids = np.full((m, n), -1, dtype=np.int64)
+    for j, row in enumerate(rows):
+        for i, (a, b, c, d) in enumerate(row):
+            for (di, dj), vert in zip(((0, 0), (1, 0), (1, 1), (0, 1)), (a, b, c, d)):
+                x, y = (i + di) % m, (j + dj) % n
+                if ids[x, y] not in (-1, vert):
+                    raise UnsupportedError("the exact grid surface needs a regular grid: the faces do not close up",
+                                           f"vertex {vert}")
+                ids[x, y] = vert
+    if len(np.unique(ids)) != ids.size or ids.size != int(used.sum()):
+        raise UnsupportedError("the exact grid surface needs a regular grid: the faces do not form one grid")
+    return ids, (bool(cu), bool(cv))
+
+
+def grid_vectors(ids: np.ndarray, vectors: list[SurfaceVector]) -> list[tuple[str, int, int, float]]:
+    """Mesh vectors as ``tensor_limit``'s (kind, i, j, s): a line vector toward the u neighbour
+    is U (its crease runs along u: C in v), toward the v neighbour V, a cross vector X."""
+    m, n = ids.shape
+    where = {int(v): (i, j) for (i, j), v in np.ndenumerate(ids)}
+    out = []
+    for vec in vectors:
+        if vec.vertex not in where:
+            raise TagError(f"control vector on vertex {vec.vertex}, which is not on the grid", f"vertex {vec.vertex}")
+        i, j = where[vec.vertex]
+        if vec.kind == CROSS:
+            out.append(("X", i, j, vec.sharpness))
+            continue
+        w = where.get(vec.toward)
+        if w is not None and w[1] == j and (w[0] - i) % m in (1, m - 1):
+            out.append(("U", i, j, vec.sharpness))
+        elif w is not None and w[0] == i and (w[1] - j) % n in (1, n - 1):
+            out.append(("V", i, j, vec.sharpness))
+        else:
+            raise TagError(f"line control vector at vertex {vec.vertex} toward {vec.toward}, which is not its grid "
+                           "neighbour", f"vertex {vec.vertex}")
+    return out

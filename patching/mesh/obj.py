@@ -233,7 +233,7 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
     floats = [_number(a, f"{tag} value", loc) for a in args[nint : nint + nfloat]]
     strings = args[nint + nfloat :]
     if tag == "controlvector":  # read by nupatch subdivide (patching.curves.surface_vectors)
-        warnings.warn(NupatchWarning(f"control vector ignored: only 'nupatch subdivide' uses them ({loc})"), stacklevel=3)
+        warnings.warn(NupatchWarning(f"control vector ignored: only 'nupatch subdivide' and 'nupatch build' of a grid use them ({loc})"), stacklevel=3)
         return interpolate_boundary
     if tag not in _KNOWN_TAGS:
         warnings.warn(NupatchWarning(f"unknown tag '{tag}' ignored ({loc})"), stacklevel=3)
