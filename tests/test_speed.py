@@ -64,7 +64,7 @@ def _clear():
     for name, module in list(sys.modules.items()):
         if name.startswith("patching.") and module is not None:
             for value in list(vars(module).values()):
-                if callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
+                if not isinstance(value, type) and callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
                     value.cache_clear()
 
 
