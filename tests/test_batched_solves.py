@@ -4,7 +4,6 @@ its one-problem solver problem by problem."""
 
 from __future__ import annotations
 
-import sys
 
 import numpy as np
 import pytest
@@ -15,31 +14,22 @@ from patching.rules import eigen_polyhedron
 from patching.util import solve_cache
 from patching.util.memo import set_batching
 from tests.conftest import SHAPES
-from tests.helpers import boundary_ep, meridian_crease, quad_mesh_with_eps, with_random_intervals
+from tests.helpers import boundary_ep, clear_package_caches, meridian_crease, quad_mesh_with_eps, with_random_intervals
 
 TOL = 1e-12
-
-
-def _clear() -> None:
-    """Empty the package's in-process caches (lru and memo), so both paths solve afresh."""
-    for name, module in list(sys.modules.items()):
-        if name.startswith("patching.") and module is not None:
-            for value in list(vars(module).values()):
-                if not isinstance(value, type) and callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
-                    value.cache_clear()
 
 
 def _both(mesh, **options):
     """M built with batching and without it, each from empty in-process caches."""
     out = []
     for on in (True, False):
-        _clear()
+        clear_package_caches()
         previous = set_batching(on)
         try:
             out.append(patching.build_operator(mesh, **options).matrix.tocsr())
         finally:
             set_batching(previous)
-    _clear()
+    clear_package_caches()
     return out
 
 
@@ -90,10 +80,10 @@ def test_batched_eigen_analysis_equals_one_vertex_at_a_time():
         d[0] = 1.0  # uniform: real eigenvalues
         d[1] = d[2]  # a repeated configuration
         d[3] = 3.0 * d[4]  # the same configuration at another scale
-        _clear()
+        clear_package_caches()
         limit, projector = eigen_polyhedron.limit_and_projectors(d)
         values = [eigen_polyhedron.subdivision_eigenvalues(row) for row in d]
-        _clear()
+        clear_package_caches()
         previous = set_batching(False)
         try:
             for k, row in enumerate(d):
@@ -112,9 +102,9 @@ def test_batched_anchor_weights_equal_one_configuration_at_a_time(rule):
     for n in (3, 5, 6):
         d = rng.choice([1.0, 2.0, 5.0], (12, n))
         a = rng.uniform(1.0, 5.0, (12, n))
-        _clear()
+        clear_package_caches()
         batch = auxiliary_points.anchor_weights_batch(d, a, rule=rule)
-        _clear()
+        clear_package_caches()
         previous = set_batching(False)
         try:
             for k in range(d.shape[0]):
@@ -159,17 +149,17 @@ def test_batched_lookups_share_the_persistent_entries():
         store = Counting()
         previous = solve_cache.set_store(store)
         try:
-            _clear()
+            clear_package_caches()
             set_batching(fill)
             first = patching.build_operator(mesh).matrix.tocsr()
             entries = dict(store.entries)
             store.misses = 0
-            _clear()
+            clear_package_caches()
             set_batching(read)
             second = patching.build_operator(mesh).matrix.tocsr()
         finally:
             set_batching(True)
             solve_cache.set_store(previous)
-            _clear()
+            clear_package_caches()
         assert store.misses == 0 and store.entries == entries
         assert (first != second).nnz == 0  # entries are float64 bit for bit

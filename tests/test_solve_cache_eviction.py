@@ -17,6 +17,7 @@ from export import solve_cache as disk
 from export.atomic import temporary_name
 from patching.util import solve_cache
 from tests.conftest import REPO
+from tests.helpers import clear_package_caches
 
 L_BRACKET = REPO / "models" / "l_bracket.obj"
 
@@ -104,22 +105,14 @@ def test_a_build_that_writes_evicts_to_the_cap(tmp_path, monkeypatch):
     mesh = patching.read_mesh(L_BRACKET)
     reference = patching.build_operator(mesh).matrix
     monkeypatch.setenv(disk.MAX_MB_ENV, "0.005")
-    _clear()
+    clear_package_caches()
     with disk.using_disk_cache(root=tmp_path) as store:
         assert store is not None and store.max_bytes == 5_000
         built = patching.build_operator(mesh).matrix
-    _clear()
+    clear_package_caches()
     assert store.written > 5_000  # the build wrote more than the cap...
     assert 0 < _total(store) <= disk.EVICT_TO * 5_000  # ...and left at most the mark
     assert (built != reference).nnz == 0
-
-
-def _clear() -> None:
-    for name, module in list(sys.modules.items()):
-        if name.startswith("patching.") and module is not None:
-            for value in list(vars(module).values()):
-                if not isinstance(value, type) and callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
-                    value.cache_clear()
 
 
 def test_concurrent_writers_readers_and_evictors(tmp_path):
