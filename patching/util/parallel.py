@@ -89,8 +89,8 @@ def _product_into_one(blocks: list[sp.csr_matrix], b) -> sp.csr_matrix | None:
     one CSR result, in parallel, then closed up where a block's kernel dropped exact zeros:
     the same rows as ``sp.vstack([block @ b ...])`` without allocating and copying the result
     twice (for a 14M-entry operator that second copy was ~0.5 s of page faults in a fresh
-    process).  None when scipy's kernels are not where this scipy keeps them (the caller then
-    stacks the blocks' products)."""
+    process).  None when scipy's kernels are not where, or not what, this scipy has them (they
+    are scipy's private ``_sparsetools``; the caller then stacks the blocks' products)."""
     try:
         from scipy.sparse import _sparsetools as kernels
 
@@ -109,7 +109,10 @@ def _product_into_one(blocks: list[sp.csr_matrix], b) -> sp.csr_matrix | None:
     idx = index_dtype(arrays)
     bp, bj, ab = converted(idx)
     pool = _pool()
-    maxnnz = list(pool.map(lambda k: int(kernels.csr_matmat_maxnnz(blocks[k].shape[0], n, *ab[k], bp, bj)), range(len(blocks))))
+    try:
+        maxnnz = list(pool.map(lambda k: int(kernels.csr_matmat_maxnnz(blocks[k].shape[0], n, *ab[k], bp, bj)), range(len(blocks))))
+    except (TypeError, ValueError):  # pragma: no cover - kernels with another signature
+        return None
     total = sum(maxnnz)
     wider = index_dtype(arrays, maxval=max(total, n))
     if wider != idx:
@@ -125,7 +128,10 @@ def _product_into_one(blocks: list[sp.csr_matrix], b) -> sp.csr_matrix | None:
         kernels.csr_matmat(blocks[k].shape[0], n, *ab[k], np.asarray(blocks[k].data, dtype), bp, bj, np.asarray(b.data, dtype),
                            ptrs[k], indices[lo:hi], data[lo:hi])
 
-    list(pool.map(run, range(len(blocks))))
+    try:
+        list(pool.map(run, range(len(blocks))))
+    except (TypeError, ValueError):  # pragma: no cover - kernels with another signature
+        return None
     rows = sum(blk.shape[0] for blk in blocks)
     indptr = np.empty(rows + 1, dtype=idx)
     at = row = 0
