@@ -103,3 +103,15 @@ def test_chains_with_exact_cancellations_are_the_plain_products(split_everything
         assert split.shape == plain.shape and split.format == "csr"
         for name in ("indptr", "indices", "data"):
             np.testing.assert_array_equal(getattr(split, name), getattr(plain, name))
+
+
+def test_the_stacking_fallback_is_the_plain_product(split_everything, monkeypatch):
+    """Where scipy's kernels cannot write one result (``_product_into_one`` gives None), the
+    blocks' products are stacked: the same arrays."""
+    monkeypatch.setattr(parallel, "_product_into_one", lambda blocks, b: None)
+    a, b, c = signs_csr(400, 200, 5, 7), signs_csr(200, 150, 4, 8), signs_csr(150, 60, 3, 9)
+    plain = ((a @ b).tocsr() @ c).tocsr()
+    plain.eliminate_zeros()
+    split = parallel.product(a, b, c, prune=True)
+    for name in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(plain, name))
