@@ -163,3 +163,22 @@ def test_batched_lookups_share_the_persistent_entries():
             clear_package_caches()
         assert store.misses == 0 and store.entries == entries
         assert (first != second).nnz == 0  # entries are float64 bit for bit
+
+
+def test_memo_is_bounded_and_shared_by_threads():
+    """The memo keeps at most maxsize entries (first in, first out) and stays consistent when
+    threads fill it at once."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from patching.util.memo import Memo
+
+    calls = []
+    square = Memo(lambda x: calls.append(x) or x * x, maxsize=50)
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(square, [i % 80 for i in range(2000)]))
+    assert results == [(i % 80) ** 2 for i in range(2000)]
+    assert square.cache_info().currsize <= 50
+    square.prime((1000,), -1)
+    assert square.known((1000,)) and square(1000) == -1
+    square.cache_clear()
+    assert square.cache_info().currsize == 0 and not square.known((1000,))

@@ -12,6 +12,7 @@ the one-problem functions (the reference path the tests compare the batched one 
 from __future__ import annotations
 
 import functools
+import threading
 from collections.abc import Callable, Hashable
 from typing import Any, NamedTuple
 
@@ -47,6 +48,7 @@ class Memo:
         self._maxsize = maxsize
         self._values: dict[Hashable, Any] = {}
         self._hits = self._misses = 0
+        self._lock = threading.Lock()  # builds in threads share the memo (as lru_cache allows)
 
     def __call__(self, *args: Hashable) -> Any:
         try:
@@ -65,12 +67,14 @@ class Memo:
 
     def prime(self, args: tuple, value: Any) -> None:
         """Store ``value`` as the result for ``args``."""
-        if args not in self._values and len(self._values) >= self._maxsize:
-            del self._values[next(iter(self._values))]
-        self._values[args] = value
+        with self._lock:
+            if args not in self._values and len(self._values) >= self._maxsize:
+                del self._values[next(iter(self._values))]
+            self._values[args] = value
 
     def cache_clear(self) -> None:
-        self._values.clear()
+        with self._lock:
+            self._values.clear()
         self._hits = self._misses = 0
 
     def cache_info(self) -> CacheInfo:
