@@ -1,7 +1,7 @@
 """Cold builds of an EP-dense mesh: ``build_operator`` in a fresh process (no in-process cache
 warm), without the on-disk cache of solved local configurations and with it (filled by a
 warm-up round), alternated in one run; optionally a second checkout (``--before DIR``) in the
-same rotation.  The mesh is ``benchmarks/build.py``'s "coarse" one: an icosphere's triangles
+same rotation, also without and with the cache.  The mesh is ``benchmarks/build.py``'s "coarse" one: an icosphere's triangles
 split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
 drawn from {1, 2, 5} per strip.  Each child prints the wall and CPU seconds of the build alone
 (the mesh read and the imports excluded).  Run by hand:
@@ -45,7 +45,7 @@ print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz)}))
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without a cache")
+    parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without and with the cache")
     args = parser.parse_args()
 
     from build import ep_mesh
@@ -55,6 +55,7 @@ def main() -> None:
     sides = {"no cache": (str(ROOT), "none"), "cache": (str(ROOT), "cache")}
     if args.before:
         sides["before"] = (str(Path(args.before).resolve()), "none")
+        sides["before cache"] = (str(Path(args.before).resolve()), "cache")  # its own entries (another source digest)
     times: dict[str, list[dict]] = {name: [] for name in sides}
     with tempfile.TemporaryDirectory() as tmp:
         obj = Path(tmp) / "coarse.obj"
@@ -71,7 +72,7 @@ def main() -> None:
     for name, rows in times.items():
         wall = np.array([r["wall"] for r in rows])
         cpu = np.array([r["cpu"] for r in rows])
-        print(f"  {name:9s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})  nnz {rows[0]['nnz']}")
+        print(f"  {name:12s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})  nnz {rows[0]['nnz']}")
 
 
 if __name__ == "__main__":

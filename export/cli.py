@@ -377,7 +377,25 @@ def _add_build_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _parser() -> argparse.ArgumentParser:
+#: The subcommands, in the order ``nupatch --help`` lists them.
+COMMANDS = ("build", "info", "subdivide", "check", "toolpath", "render", "curve", "fit", "models")
+
+
+def _command_of(argv: list[str]) -> str | None:
+    """The subcommand that ``argv`` runs, when it is plain to see (only ``--debug`` before
+    it), else None (help, --version, a typo: the whole parser answers those)."""
+    for token in argv:
+        if token == "--debug":
+            continue
+        return token if token in COMMANDS else None
+    return None
+
+
+def _parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; ``only``: just that subcommand's (``main`` passes the one
+    being run, so that ``nupatch build`` neither builds nor imports the other commands'
+    parsers: the render, curve, fit and toolpath modules are a tenth of a small build)."""
+    want = lambda name: only is None or only == name  # noqa: E731
     parser = _Parser(
         prog="nupatch",
         description="Quad control meshes with knot intervals to smooth Bezier/NURBS B-reps (STEP).",
@@ -391,111 +409,123 @@ def _parser() -> argparse.ArgumentParser:
     from patching.mesh.control_mesh import TRIANGLE_SUBDIVISIONS
     from export.inputs import add_intervals_argument
 
-    p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
-    p.add_argument("mesh", metavar="MESH", nargs="*", help="control mesh(es): OBJ with OpenSubdiv tags, USD, or - (standard input)")
-    p.add_argument("--example", action="append", metavar="NAME", help="a sample model shipped with nupatch (nupatch models lists them)")
-    p.add_argument(
-        "-o", "--output", metavar="OUT",
-        help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
-    )
-    p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="build several meshes in N processes (default 1)")
-    p.add_argument(
-        "--dask", metavar="ADDRESS",
-        help="build on a Dask cluster instead: tcp://host:port of a running scheduler, or 'local' for a LocalCluster here "
-        "(extra [dask]); the files are written here",
-    )
-    p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
-    p.add_argument(
-        "--tolerance", type=float, metavar="T",
-        help="linear deflection of the stl/glb/obj tessellation, model units (default: 1e-3 of the control mesh's diagonal)",
-    )
-    _add_build_options(p)
-    p.add_argument(
-        "--pack", action="store_true",
-        help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
-    )
-    p.add_argument(
-        "--no-cache", action="store_true",
-        help="solve every local configuration afresh, without the on-disk cache of solved ones "
-        "($XDG_CACHE_HOME/nupatch; also NUPATCH_NO_CACHE=1)",
-    )
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
-    add_intervals_argument(p)
-    p.set_defaults(func=cmd_build)
+    if want("build"):
+        p = sub.add_parser("build", help="build a control mesh (OBJ) into a STEP solid or shell (or IGES, BREP, STL, glTF, OBJ)")
+        p.add_argument("mesh", metavar="MESH", nargs="*", help="control mesh(es): OBJ with OpenSubdiv tags, USD, or - (standard input)")
+        p.add_argument("--example", action="append", metavar="NAME", help="a sample model shipped with nupatch (nupatch models lists them)")
+        p.add_argument(
+            "-o", "--output", metavar="OUT",
+            help="output file (default: MESH with .step, or the --format's suffix); with several meshes, a directory",
+        )
+        p.add_argument("-j", "--jobs", type=int, default=1, metavar="N", help="build several meshes in N processes (default 1)")
+        p.add_argument(
+            "--dask", metavar="ADDRESS",
+            help="build on a Dask cluster instead: tcp://host:port of a running scheduler, or 'local' for a LocalCluster here "
+            "(extra [dask]); the files are written here",
+        )
+        p.add_argument("--format", choices=FORMATS, help="output format (default: from OUT's suffix)")
+        p.add_argument(
+            "--tolerance", type=float, metavar="T",
+            help="linear deflection of the stl/glb/obj tessellation, model units (default: 1e-3 of the control mesh's diagonal)",
+        )
+        _add_build_options(p)
+        p.add_argument(
+            "--pack", action="store_true",
+            help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
+        )
+        p.add_argument(
+            "--no-cache", action="store_true",
+            help="solve every local configuration afresh, without the on-disk cache of solved ones "
+            "($XDG_CACHE_HOME/nupatch; also NUPATCH_NO_CACHE=1)",
+        )
+        p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
+        add_intervals_argument(p)
+        p.set_defaults(func=cmd_build)
 
-    p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
-    p.add_argument("mesh", metavar="MESH")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    add_intervals_argument(p)
-    p.set_defaults(func=cmd_info)
+    if want("info"):
+        p = sub.add_parser("info", help="report vertices, faces, extraordinary points, strips, creases")
+        p.add_argument("mesh", metavar="MESH")
+        p.add_argument("--json", action="store_true", help="machine-readable output")
+        add_intervals_argument(p)
+        p.set_defaults(func=cmd_info)
 
-    p = sub.add_parser("subdivide", help="refine a control mesh by non-uniform Catmull-Clark subdivision, keeping its tags")
-    p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
-    p.add_argument("-n", dest="steps", type=int, default=1, metavar="K", help="number of steps (default 1)")
-    p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
-    p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only; nurss: Sederberg et al.'s NURSS at extraordinary points (a baseline)")
-    p.add_argument(
-        "--eigen-angles", "--angles", dest="eigen_angles", choices=ANGLE_CHOICES, default="standard",
-        help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",
-    )
-    p.add_argument(
-        "--crease-method", choices=CREASE_METHODS, default="uniform",
-        help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
-    )
-    p.add_argument(
-        "--triangles", choices=TRIANGLE_SUBDIVISIONS, default=None,
-        help="Catmull-Clark's rule beside triangles: catmark, or smooth (OpenSubdiv's TRI_SUB_SMOOTH, --rules opensubdiv "
-        "only); default: the mesh's 't smoothtriangles 0/0/1 smooth' tag, else catmark",
-    )
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
-    from export.subdivided import add_arguments as _subdivided_arguments  # --scheme, --normals
+    if want("subdivide"):
+        p = sub.add_parser("subdivide", help="refine a control mesh by non-uniform Catmull-Clark subdivision, keeping its tags")
+        p.add_argument("mesh", metavar="MESH", help="control mesh, OBJ with OpenSubdiv tags")
+        p.add_argument("-n", dest="steps", type=int, default=1, metavar="K", help="number of steps (default 1)")
+        p.add_argument("-o", "--output", metavar="OUT.obj", required=True, help="refined mesh, with interval and crease tags")
+        p.add_argument("--rules", choices=RULE_SETS, default="seed", help="seed: [TLC]'s non-uniform rules (default); opensubdiv: OpenSubdiv's, uniform intervals only; nurss: Sederberg et al.'s NURSS at extraordinary points (a baseline)")
+        p.add_argument(
+            "--eigen-angles", "--angles", dest="eigen_angles", choices=ANGLE_CHOICES, default="standard",
+            help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",
+        )
+        p.add_argument(
+            "--crease-method", choices=CREASE_METHODS, default="uniform",
+            help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
+        )
+        p.add_argument(
+            "--triangles", choices=TRIANGLE_SUBDIVISIONS, default=None,
+            help="Catmull-Clark's rule beside triangles: catmark, or smooth (OpenSubdiv's TRI_SUB_SMOOTH, --rules opensubdiv "
+            "only); default: the mesh's 't smoothtriangles 0/0/1 smooth' tag, else catmark",
+        )
+        p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+        from export.subdivided import add_arguments as _subdivided_arguments  # --scheme, --normals
 
-    _subdivided_arguments(p)
-    add_intervals_argument(p)
-    p.set_defaults(func=cmd_subdivide)
+        _subdivided_arguments(p)
+        add_intervals_argument(p)
+        p.set_defaults(func=cmd_subdivide)
 
-    p = sub.add_parser("check", help="validity and continuity of a STEP, IGES or BREP file: per-edge G0/G1 table, sharp edges")
-    p.add_argument("file", metavar="FILE", help="STEP, IGES or BREP file (told by its header)")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--worst", type=int, default=CHECK_DEFAULTS["worst"], metavar="N", help=f"list the N worst edges by normal jump and by gap (default {CHECK_DEFAULTS['worst']})")
-    p.add_argument("--all", action="store_true", help="list every shared edge")
-    p.add_argument("--samples", type=int, default=9, metavar="K", help="samples per shared edge, ends included (default 9)")
-    p.add_argument(
-        "--sharp-angle", type=float, default=CHECK_DEFAULTS["sharp_angle_deg"], metavar="DEG",
-        help=f"an edge whose normal jump is at least DEG all along is sharp, a crease (default {CHECK_DEFAULTS['sharp_angle_deg']:g})",
-    )
-    p.add_argument(
-        "--g1-tolerance", type=float, default=CHECK_DEFAULTS["g1_tolerance_deg"], metavar="DEG",
-        help=f"largest normal jump of a G1 edge (default {CHECK_DEFAULTS['g1_tolerance_deg']:g})",
-    )
-    p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
-    p.set_defaults(func=cmd_check)
+    if want("check"):
+        p = sub.add_parser("check", help="validity and continuity of a STEP, IGES or BREP file: per-edge G0/G1 table, sharp edges")
+        p.add_argument("file", metavar="FILE", help="STEP, IGES or BREP file (told by its header)")
+        p.add_argument("--json", action="store_true", help="machine-readable output")
+        p.add_argument("--worst", type=int, default=CHECK_DEFAULTS["worst"], metavar="N", help=f"list the N worst edges by normal jump and by gap (default {CHECK_DEFAULTS['worst']})")
+        p.add_argument("--all", action="store_true", help="list every shared edge")
+        p.add_argument("--samples", type=int, default=9, metavar="K", help="samples per shared edge, ends included (default 9)")
+        p.add_argument(
+            "--sharp-angle", type=float, default=CHECK_DEFAULTS["sharp_angle_deg"], metavar="DEG",
+            help=f"an edge whose normal jump is at least DEG all along is sharp, a crease (default {CHECK_DEFAULTS['sharp_angle_deg']:g})",
+        )
+        p.add_argument(
+            "--g1-tolerance", type=float, default=CHECK_DEFAULTS["g1_tolerance_deg"], metavar="DEG",
+            help=f"largest normal jump of a G1 edge (default {CHECK_DEFAULTS['g1_tolerance_deg']:g})",
+        )
+        p.add_argument("--require-g1", action="store_true", help="exit 1 unless every non-sharp edge is G1")
+        p.set_defaults(func=cmd_check)
 
-    from export.cli_toolpath import add_parser as _add_toolpath
+    if want("toolpath"):
+        from export.cli_toolpath import add_parser as _add_toolpath
 
-    _add_toolpath(sub)
+        _add_toolpath(sub)
 
-    p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature, blending functions")
-    from export.cli_render import add_arguments as _render_arguments
+    if want("render"):
+        p = sub.add_parser("render", help="draw a mesh's surface or a STEP file to PNG, headless: shaded, zebra, curvature, blending functions")
+        from export.cli_render import add_arguments as _render_arguments
 
-    _render_arguments(p)
-    _add_build_options(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
-    add_intervals_argument(p)
-    from export.render_subdivided import add_arguments as _add_subdivided_render
+        _render_arguments(p)
+        _add_build_options(p)
+        p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+        add_intervals_argument(p)
+        from export.render_subdivided import add_arguments as _add_subdivided_render
 
-    _add_subdivided_render(p)
-    p.set_defaults(func=cmd_render)
+        _add_subdivided_render(p)
+        p.set_defaults(func=cmd_render)
 
-    from export import cli_curve
+    if want("curve"):
+        from export import cli_curve
 
-    cli_curve.add_parser(sub)
-    from export import cli_fit
+        cli_curve.add_parser(sub)
 
-    cli_fit.add_parser(sub)
-    from export import cli_models
+    if want("fit"):
+        from export import cli_fit
 
-    cli_models.add_parser(sub)
+        cli_fit.add_parser(sub)
+
+    if want("models"):
+        from export import cli_models
+
+        cli_models.add_parser(sub)
+
     return parser
 
 
@@ -503,7 +533,7 @@ def main(argv: list[str] | None = None) -> int:
     from export.signals import Terminated, install
 
     install()  # SIGTERM and SIGHUP unwind like Ctrl-C (export.signals)
-    args = _parser().parse_args(argv)
+    args = _parser(_command_of(sys.argv[1:] if argv is None else list(argv))).parse_args(argv)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", patching.NupatchWarning)
         try:

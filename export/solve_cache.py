@@ -8,21 +8,41 @@ whole and a reader never sees half an entry.  An unreadable, truncated or corrup
 ignored (``patching.util.solve_cache.decode`` checks its digests) and rewritten by the solve.
 Any OS error (read-only or full disk, no home directory) makes the store a no-op, never a
 failed build.  ``nupatch build --no-cache`` or ``NUPATCH_NO_CACHE=1`` disable it.
+
+Size cap: least recently used entries go first.  A read refreshes an entry's mtime (at most
+once per ``DiskStore.refresh_after`` seconds, so a warm build does not rewrite thousands of
+inodes), so mtime is the entry's last write or use whatever the file system does with atime.
+After a build that wrote entries, ``evict`` lists the entries and, if they hold more than
+``max_bytes`` (``$NUPATCH_CACHE_MAX_MB`` MB, default 256), removes the oldest until they hold
+at most ``EVICT_TO`` of it.  Concurrent builds stay safe: an entry removed under a reader that
+has it open is still read whole (POSIX unlink), one removed before it is opened is a miss that
+the solve rewrites, two evictors removing the same file ignore the second removal, and an
+entry renamed into place after the listing is the newest and is kept.  Temporary files of
+writes in progress are never touched (``export.atomic`` removes those a killed run left).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 from patching.util.solve_cache import SolveStore, set_store
 
-__all__ = ["DiskStore", "cache_directory", "cache_disabled", "using_disk_cache"]
+__all__ = ["DiskStore", "cache_directory", "cache_disabled", "cache_max_bytes", "using_disk_cache"]
 
 #: Environment variable that disables the cache (any value but "", "0").
 NO_CACHE_ENV = "NUPATCH_NO_CACHE"
+#: Environment variable with the size cap in MB (module docstring).
+MAX_MB_ENV = "NUPATCH_CACHE_MAX_MB"
+DEFAULT_MAX_MB = 256.0
+#: An eviction removes entries until they hold at most this share of the cap (so that the
+#: next few builds do not each evict again).
+EVICT_TO = 0.8
+_ENTRY = re.compile(r"^[0-9a-f]{64}$")
 
 
 def cache_directory() -> Path:
@@ -39,22 +59,41 @@ def cache_disabled() -> bool:
     return os.environ.get(NO_CACHE_ENV, "") not in ("", "0")
 
 
+def cache_max_bytes() -> int:
+    """The size cap: ``$NUPATCH_CACHE_MAX_MB`` MB (a non-negative number), else 256 MB."""
+    text = os.environ.get(MAX_MB_ENV, "")
+    try:
+        mb = float(text) if text else DEFAULT_MAX_MB
+    except ValueError:
+        mb = DEFAULT_MAX_MB
+    return int(max(mb, 0.0) * 1e6) if mb == mb else int(DEFAULT_MAX_MB * 1e6)
+
+
 class DiskStore:
     """Entries as files under ``root/solves`` (module docstring)."""
 
-    def __init__(self, root: str | os.PathLike | None = None) -> None:
+    #: A read refreshes an entry's mtime when it is older than this (seconds).
+    refresh_after = 3600.0
+
+    def __init__(self, root: str | os.PathLike | None = None, max_bytes: int | None = None) -> None:
         self.root = Path(root) if root is not None else cache_directory()
         self._solves = os.path.join(self.root, "solves")
+        self.max_bytes = cache_max_bytes() if max_bytes is None else int(max_bytes)
+        self.written = 0  # entries this store wrote (bytes)
 
     def path(self, key: str) -> Path:
         return Path(self._solves, key[:2], key)
 
     def get(self, key: str) -> bytes | None:
+        path = os.path.join(self._solves, key[:2], key)
         try:
-            with open(os.path.join(self._solves, key[:2], key), "rb") as f:
-                return f.read()
+            with open(path, "rb") as f:
+                data = f.read()
+                if time.time() - os.fstat(f.fileno()).st_mtime > self.refresh_after:
+                    os.utime(f.fileno())  # recently used (module docstring)
         except OSError:
             return None
+        return data
 
     def put(self, key: str, data: bytes) -> None:
         from export.atomic import atomic_output
@@ -64,8 +103,54 @@ class DiskStore:
             path.parent.mkdir(parents=True, exist_ok=True)
             with atomic_output(path, durable=False) as tmp:  # readers check the digests
                 tmp.write_bytes(data)
+            self.written += len(data)
         except Exception:  # noqa: BLE001 - a cache that cannot write is no cache, not an error
             pass
+
+    def entries(self) -> list[tuple[float, int, str]]:
+        """(mtime, size, path) of every entry; files that vanish meanwhile are left out."""
+        out = []
+        try:
+            buckets = [b.path for b in os.scandir(self._solves) if len(b.name) == 2 and b.is_dir(follow_symlinks=False)]
+        except OSError:
+            return out
+        for bucket in buckets:
+            try:
+                with os.scandir(bucket) as it:
+                    for entry in it:
+                        if _ENTRY.match(entry.name):
+                            try:
+                                st = entry.stat(follow_symlinks=False)
+                            except OSError:
+                                continue
+                            out.append((st.st_mtime, st.st_size, entry.path))
+            except OSError:
+                continue
+        return out
+
+    def evict(self, max_bytes: int | None = None) -> int:
+        """If the entries hold more than ``max_bytes`` (default ``self.max_bytes``), remove the
+        least recently used until they hold at most ``EVICT_TO`` of it; returns how many
+        this call removed (module docstring: safe beside other builds)."""
+        cap = self.max_bytes if max_bytes is None else int(max_bytes)
+        found = self.entries()
+        total = sum(size for _, size, _ in found)
+        if total <= cap:
+            return 0
+        goal = int(EVICT_TO * cap)
+        removed = 0
+        for _, size, path in sorted(found):
+            if total <= goal:
+                break
+            try:
+                os.remove(path)
+                removed += 1
+            except FileNotFoundError:
+                pass  # another build evicted it first
+            except OSError:
+                continue
+            total -= size
+        return removed
 
 
 @contextlib.contextmanager
@@ -78,3 +163,6 @@ def using_disk_cache(enabled: bool = True, root: str | os.PathLike | None = None
         yield store
     finally:
         set_store(previous)
+        if store is not None and store.written:
+            with contextlib.suppress(OSError):
+                store.evict()

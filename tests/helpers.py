@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import sys
 
 import numpy as np
 from OCP.Bnd import Bnd_Box
@@ -703,3 +704,13 @@ def roof_mesh(n: int = 4, slope: float = 0.08, crease: bool = True):
     ridge = n // 2
     creases = {(ridge * (n + 1) + j, ridge * (n + 1) + j + 1): 10.0 for j in range(n)} if crease else {}
     return patching.from_arrays(verts, faces, creases=creases, name="roof")
+
+
+def clear_package_caches() -> None:
+    """Empty every in-process cache of the package (lru_cache and ``patching.util.memo``), so
+    that each local solve runs again or asks the persistent store."""
+    for name, module in list(sys.modules.items()):
+        if name.startswith("patching.") and module is not None:
+            for value in list(vars(module).values()):
+                if not isinstance(value, type) and callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
+                    value.cache_clear()

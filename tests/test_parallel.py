@@ -78,3 +78,40 @@ def test_builds_run_their_small_dense_solves_on_one_blas_thread(monkeypatch):
         subdivision.subdivision_operator(quad_mesh_with_eps("cube"))
         assert blas_threads() == before
     assert seen and set(seen) == {1}
+
+
+def signs_csr(rows: int, cols: int, per_row: int, seed: int) -> sp.csr_matrix:
+    """Entries +-1: products of these cancel exactly in many places (scipy's kernel drops
+    those sums, so row blocks leave gaps in a result written in one piece)."""
+    a = random_csr(rows, cols, per_row, seed)
+    a.data = np.sign(a.data)
+    return a
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_chains_with_exact_cancellations_are_the_plain_products(split_everything, seed):
+    a, b, c = signs_csr(600, 300, 6, seed), signs_csr(300, 250, 4, seed + 1), signs_csr(250, 90, 3, seed + 2)
+    one = (a @ b).tocsr()
+    assert one.nnz < (a.astype(bool) @ b.astype(bool)).nnz  # the kernel did drop exact zeros
+    for factors, prune in (((b,), False), ((b, c), False), ((b, c), True)):
+        plain = a
+        for f in factors:
+            plain = (plain @ f).tocsr()
+        if prune:
+            plain.eliminate_zeros()
+        split = parallel.product(a, *factors, prune=prune)
+        assert split.shape == plain.shape and split.format == "csr"
+        for name in ("indptr", "indices", "data"):
+            np.testing.assert_array_equal(getattr(split, name), getattr(plain, name))
+
+
+def test_the_stacking_fallback_is_the_plain_product(split_everything, monkeypatch):
+    """Where scipy's kernels cannot write one result (``_product_into_one`` gives None), the
+    blocks' products are stacked: the same arrays."""
+    monkeypatch.setattr(parallel, "_product_into_one", lambda blocks, b: None)
+    a, b, c = signs_csr(400, 200, 5, 7), signs_csr(200, 150, 4, 8), signs_csr(150, 60, 3, 9)
+    plain = ((a @ b).tocsr() @ c).tocsr()
+    plain.eliminate_zeros()
+    split = parallel.product(a, b, c, prune=True)
+    for name in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(plain, name))

@@ -21,6 +21,7 @@ import patching
 from export.solve_cache import DiskStore, using_disk_cache
 from patching.util import solve_cache
 from patching.util.graph import connected_components
+from tests.helpers import clear_package_caches
 
 REPO = Path(__file__).resolve().parent.parent
 L_BRACKET = REPO / "models" / "l_bracket.obj"
@@ -60,12 +61,7 @@ def _operator(mesh, store):
 
 
 def _clear():
-    """Empty every in-process (lru) cache of the package, so that each solve asks the store."""
-    for name, module in list(sys.modules.items()):
-        if name.startswith("patching.") and module is not None:
-            for value in list(vars(module).values()):
-                if callable(getattr(value, "cache_clear", None)) and hasattr(value, "cache_info"):
-                    value.cache_clear()
+    clear_package_caches()  # the in-process caches would hide the persistent one
 
 
 @pytest.fixture(scope="module")

@@ -223,8 +223,10 @@ def _mapped(key, mode, omega, max_iterations, sharp) -> AngleConfiguration:
     d = np.array(key)
     n = d.size
     best = None
-    for g, gp in _dihedral(n):
-        cand = (tuple(d[g]), tuple(sorted(int(j) for j in np.flatnonzero(np.isin(g, sharp)))))
+    marked = set(sharp)
+    for g, gp in _dihedral(n):  # in plain Python: a build meets hundreds of EPs, 2n relabellings each
+        gl = g.tolist()
+        cand = (tuple(key[j] for j in gl), tuple(j for j, x in enumerate(gl) if x in marked))
         if best is None or cand < best[0]:
             best = (cand, g, gp)
     (dc, sharp_c), g, gp = best

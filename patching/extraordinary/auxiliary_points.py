@@ -41,12 +41,13 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from patching.rules.eigen_polyhedron import limit_point_weights, tangent_projector
+from patching.rules.eigen_polyhedron import limit_and_projectors, limit_point_weights, tangent_projector
 from patching.topology.tables import Topology
-from patching.util.solve_cache import lookup
+from patching.util.memo import batching, memo
+from patching.util.solve_cache import lookup, lookup_many
 from patching.util.sparse_rows import TripletRows
 
-__all__ = ["RULES", "anchor_weights", "anchor_matrix", "onward_interval", "vertex_point_weights"]
+__all__ = ["RULES", "anchor_weights", "anchor_weights_batch", "anchor_matrix", "onward_interval", "vertex_point_weights"]
 
 
 def vertex_point_weights(d: np.ndarray) -> np.ndarray:
@@ -61,17 +62,20 @@ def vertex_point_weights(d: np.ndarray) -> np.ndarray:
 RULES = ("eigen-polyhedron", "extraction", "first-ring")
 
 
-@lru_cache(maxsize=4096)
+def _anchor_valid(args: tuple, arrays: list[np.ndarray]) -> bool:
+    """A cache entry of ``_anchor_weights(*args)`` is trusted if it is n x (2n + 1) with rows
+    summing to 1."""
+    n = len(args[0])
+    (w,) = arrays
+    return w.shape == (n, 2 * n + 1) and bool(np.all(np.abs(w.sum(axis=1) - 1.0) <= 1e-9))
+
+
+@memo(4096)
 def _anchor_weights(d: tuple, a: tuple, angles: str, rule: str) -> np.ndarray:
     """``_anchor_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one
-    is installed; an entry is trusted if it is n x (2n + 1) with rows summing to 1)."""
-    n = len(d)
-
-    def valid(arrays) -> bool:
-        (w,) = arrays
-        return w.shape == (n, 2 * n + 1) and bool(np.all(np.abs(w.sum(axis=1) - 1.0) <= 1e-9))
-
-    (out,) = lookup("anchor_weights", (d, a, angles, rule), 1, lambda: [_anchor_solve(d, a, angles, rule)], valid)
+    is installed; ``_anchor_valid`` judges an entry)."""
+    args = (d, a, angles, rule)
+    (out,) = lookup("anchor_weights", args, 1, lambda: [_anchor_solve(d, a, angles, rule)], lambda x: _anchor_valid(args, x))
     out.setflags(write=False)
     return out
 
@@ -119,6 +123,67 @@ def _anchor_solve(d: tuple, a: tuple, angles: str, rule: str) -> np.ndarray:
     out = out + invisible @ (extraction - out)
     out.setflags(write=False)
     return out
+
+
+def _anchor_solve_batch(d: np.ndarray, a: np.ndarray, angles: str, rule: str) -> np.ndarray:
+    """``_anchor_solve`` of g configurations of one valence at once: d, a (g, n) -> (g, n,
+    2n+1), the same steps with every ring row a (g,)-vector operation and the eigen-analysis
+    of all g rings in one batched call (``limit_and_projectors``)."""
+    g, n = d.shape
+    size = 2 * n + 1
+    rows = np.arange(g)
+    before = np.roll(d, 2, axis=1) + np.roll(d, -2, axis=1)
+    w = before / (before + 2 * d + 2 * a)
+    ring = np.zeros((g, size, size))
+    for i in range(n):
+        wi, wj = w[:, i], w[:, (i + 1) % n]
+        fi, ei, ej = 1 + n + i, 1 + i, 1 + (i + 1) % n
+        ring[rows, fi, 0] += (1 - wi) * (1 - wj)
+        ring[rows, fi, ei] += wi * (1 - wj)
+        ring[rows, fi, fi] += wi * wj
+        ring[rows, fi, ej] += (1 - wi) * wj
+    for i in range(n):
+        dm, dp = d[:, (i - 1) % n, None], d[:, (i + 1) % n, None]
+        ring[:, 1 + i] = (dm * ring[:, 1 + n + i] + dp * ring[:, 1 + n + (i - 1) % n]) / (dm + dp)
+    cw = np.roll(d, 1, axis=1) * np.roll(d, -2, axis=1)
+    c = cw / cw.sum(axis=1, keepdims=True)  # vertex_point_weights per row
+    ring[:, 0] = sum(c[:, i, None] * ring[:, 1 + n + i] for i in range(n))
+    if rule == "first-ring":
+        return ring[:, n + 1 :].copy()
+    weights, projector = limit_and_projectors(d, angles=angles)
+    limit = np.einsum("gs,gst->gt", weights, ring)  # C
+    extraction = ring[:, n + 1 :] + (limit - ring[:, 0])[:, None, :]
+    if rule == "extraction":
+        return extraction
+    faces = (projector @ ring)[:, n:]  # V-bar of the faces
+    shift = np.einsum("gi,gis->gs", c, faces)  # C'
+    out = limit[:, None, :] - shift[:, None, :] + faces
+    invisible = np.stack([_invisible_projector(tuple(row)) for row in d.tolist()])  # step 5
+    return out + invisible @ (extraction - out)
+
+
+def anchor_weights_batch(d: np.ndarray, a: np.ndarray, angles: str = "standard", rule: str = "eigen-polyhedron") -> np.ndarray:
+    """:func:`anchor_weights` of g configurations of one valence: d, a (g, n) -> (g, n, 2n+1).
+    Those not solved before in this process are read from the persistent cache (when one is
+    installed) or solved in one batch (``_anchor_solve_batch``); equal to the one-configuration
+    function row for row (to round-off: the batched products may sum in another order)."""
+    if rule not in RULES:
+        raise ValueError(f"anchor rule must be one of {RULES}, not {rule!r}")
+    d, a = np.asarray(d, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    configs = [(tuple(x), tuple(y), angles, rule) for x, y in zip(d.tolist(), a.tolist())]
+    if not batching():
+        return np.array([_anchor_weights(*args) for args in configs]).reshape(d.shape + (2 * d.shape[1] + 1,))
+    todo = list(dict.fromkeys(args for args in configs if not _anchor_weights.known(args)))
+
+    def solve_many(args_list: list[tuple]) -> list[list[np.ndarray]]:
+        out = _anchor_solve_batch(np.array([x[0] for x in args_list]), np.array([x[1] for x in args_list]), angles, rule)
+        return [[w] for w in out]
+
+    if todo:
+        for args, (w,) in zip(todo, lookup_many("anchor_weights", todo, 1, solve_many, _anchor_valid)):
+            w.setflags(write=False)
+            _anchor_weights.prime(args, w)
+    return np.array([_anchor_weights(*args) for args in configs]).reshape(d.shape + (2 * d.shape[1] + 1,))
 
 
 @lru_cache(maxsize=4096)
@@ -186,7 +251,7 @@ def anchor_matrix(
         a = np.where(inner[ends], onward_interval(topo, h), g.d)
         config = np.concatenate([g.d, a], axis=1)
         uniq, inverse = np.unique(config, axis=0, return_inverse=True)
-        table = np.array([anchor_weights(row[: g.n], row[g.n :], angles, rule) for row in uniq])
+        table = anchor_weights_batch(uniq[:, : g.n], uniq[:, g.n :], angles, rule)
         weights = table[inverse.ravel()]  # (E, n, 2n+1)
         ids = np.concatenate([g.vertices[:, None], ends, far_corner], axis=1)  # (E, 2n+1)
         anchor_rows = anchor_column[h] - n_points  # (E, n)

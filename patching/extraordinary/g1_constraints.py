@@ -52,7 +52,7 @@ from math import comb
 
 import numpy as np
 
-__all__ = ["SLOTS", "spoke_equations", "r_slot", "a_slot", "b_slot", "fifth_difference"]
+__all__ = ["SLOTS", "spoke_equations", "spoke_equations_batch", "r_slot", "a_slot", "b_slot", "fifth_difference"]
 
 #: Slot vector of one spoke: r_0..r_5 = A[j, 0], then A[j, 1] (j = 0..5), then B[1, j].
 SLOTS = 18
@@ -111,4 +111,33 @@ def spoke_equations(alpha_a: float, alpha_b: float, b0: float, b1: float | None)
                 w = 5.0 * b1 * comb(4, k - 1) / comb(5, k)
                 g[k, r_slot(k)] += w
                 g[k, r_slot(k - 1)] -= w
+    return g
+
+
+def spoke_equations_batch(alpha_a: np.ndarray, alpha_b: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """:func:`spoke_equations` of m spokes at once: (m,) arrays -> (m, 6, SLOTS), b1 NaN for a
+    regular far end; every coefficient by the same floating-point operations as alone."""
+    alpha_a, alpha_b, b0, b1 = (np.asarray(x, dtype=np.float64) for x in (alpha_a, alpha_b, b0, b1))
+    g = np.zeros((alpha_a.size, 6, SLOTS))
+    for k in range(6):
+        g[:, k, a_slot(k)] += 5.0 * alpha_a
+        g[:, k, b_slot(k)] += 5.0 * alpha_b
+        g[:, k, r_slot(k)] -= 5.0 * (alpha_a + alpha_b)
+    regular = np.isnan(b1)
+    if regular.any():
+        for k in range(4):
+            weight = 4.0 * b0[regular] * comb(3, k) / comb(5, k)
+            g[regular, k, :6] -= weight[:, None] * (_RHO[k + 1] - _RHO[k])
+    far = ~regular
+    if far.any():
+        c0, c1 = b0[far], b1[far]
+        for k in range(6):
+            if k <= 4:
+                w = 5.0 * c0 * comb(4, k) / comb(5, k)
+                g[far, k, r_slot(k + 1)] -= w
+                g[far, k, r_slot(k)] += w
+            if k >= 1:
+                w = 5.0 * c1 * comb(4, k - 1) / comb(5, k)
+                g[far, k, r_slot(k)] += w
+                g[far, k, r_slot(k - 1)] -= w
     return g

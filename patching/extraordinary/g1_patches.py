@@ -77,10 +77,11 @@ import scipy.sparse as sp
 
 from patching.extraordinary.angle_configuration import angle_configuration
 from patching.topology.features import CORNER_SECTOR, CREASE_SECTOR, Features
-from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations
+from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations, spoke_equations_batch
 from patching.surface import CORNER_PARAMETERS
 from patching.topology.tables import Topology
-from patching.util.solve_cache import lookup
+from patching.util.memo import batching, memo
+from patching.util.solve_cache import lookup, lookup_many
 
 __all__ = ["Q_WEIGHT", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
@@ -342,22 +343,65 @@ def _null_space(a: np.ndarray, rtol: float = 1e-11) -> np.ndarray:
     return vt[rank:].T
 
 
-@lru_cache(maxsize=4096)
+def _red_valid(args: tuple, arrays: list[np.ndarray]) -> bool:
+    """A cache entry of ``_red_operator(*args)`` is trusted if it is (1 + 3n) x (1 + 3n) with
+    rows summing to 1."""
+    size = 1 + 3 * args[0]
+    (k,) = arrays
+    return k.shape == (size, size) and bool(np.all(np.abs(k.sum(axis=1) - 1.0) <= 1e-9))
+
+
+@memo(4096)
 def _red_operator(
     n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
 ) -> np.ndarray:
     """``_red_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one is
-    installed; an entry is trusted if it is (1 + 3n) x (1 + 3n) with rows summing to 1)."""
-    size = 1 + 3 * n
-
-    def valid(arrays) -> bool:
-        (k,) = arrays
-        return k.shape == (size, size) and bool(np.all(np.abs(k.sum(axis=1) - 1.0) <= 1e-9))
-
+    installed; ``_red_valid`` judges an entry)."""
     args = (n, key, pinned, gap, skip, q_weight)
-    (k,) = lookup("red_operator", args, 1, lambda: [_red_solve(*args)], valid)
+    (k,) = lookup("red_operator", args, 1, lambda: [_red_solve(*args)], lambda a: _red_valid(args, a))
     k.setflags(write=False)
     return k
+
+
+def _red_operators(n: int, keys: list[tuple], pinned: tuple, gap: int, skip: tuple, q_weight: float) -> np.ndarray:
+    """``_red_operator`` of many spoke keys of one group (same valence, pinned, gap, skip):
+    (len(keys), 1 + 3n, 1 + 3n).  Keys not solved before in this process are read from the
+    persistent cache or solved together (``_red_solve_batch``)."""
+    configs = [(n, key, pinned, gap, skip, q_weight) for key in keys]
+    if batching():
+        todo = list(dict.fromkeys(a for a in configs if not _red_operator.known(a)))
+        if todo:
+            solve_many = lambda args_list: [[k] for k in _red_solve_batch(n, [a[1] for a in args_list], pinned, gap, skip, q_weight)]  # noqa: E731
+            for args, (k,) in zip(todo, lookup_many("red_operator", todo, 1, solve_many, _red_valid)):
+                k.setflags(write=False)
+                _red_operator.prime(args, k)
+    return np.array([_red_operator(*a) for a in configs]).reshape(len(keys), 1 + 3 * n, 1 + 3 * n)
+
+
+def _stage1_structure(n: int, pinned: tuple, gap: int):
+    """Stage 1 of the red solve on x1 = [P00, s, f]: (n1, free, E, H, F) with the held
+    components (P00, pinned spokes, a gap's face point), the differences D over present
+    patches as rows E, H keeping the held components and F putting the free ones.  Then
+    x1 = H x1_hat + F u, C0 x1 = 0, min |E x1 - E x1_hat|: u = U0 x1_hat + Z w, U0 the
+    least-norm solution of C0 F u = -C0 H x1_hat, Z = null(C0 F)."""
+    s = lambda i: 1 + (i % n)  # noqa: E731
+    f = lambda i: 1 + n + (i % n)  # noqa: E731
+    n1 = 1 + 2 * n
+    held = [0] + [s(i) for i in range(n) if pinned[i]] + ([f(gap)] if gap >= 0 else [])
+    free = [c for c in range(n1) if c not in held]
+    diffs = []
+    for i in range(n):
+        pairs = [(s(i), 0)] + ([] if i == gap else [(f(i), s(i)), (s(i + 1), f(i))])
+        for a, b in pairs:
+            row = np.zeros(n1)
+            row[a] += 1.0
+            row[b] -= 1.0
+            diffs.append(row)
+    hold = np.zeros((n1, n1))
+    hold[held, held] = 1.0
+    put = np.zeros((n1, len(free)))
+    put[free, np.arange(len(free))] = 1.0
+    return n1, free, np.vstack(diffs), hold, put
 
 
 def _red_solve(
@@ -398,26 +442,8 @@ def _red_solve(
                 row[col] += g[k, slot]
             assert np.allclose(np.delete(g[k], list(slot_to_x)), 0.0), "G_0, G_1 reach beyond the red slots"
             rows[k].append(row)
-    # Stage 1 on x1 = [P00, s, f]: the held components, the differences D over present patches.
-    n1 = 1 + 2 * n
-    held = [0] + [s(i) for i in range(n) if pinned[i]] + ([f(gap)] if gap >= 0 else [])
-    free = [c for c in range(n1) if c not in held]
-    diffs = []
-    for i in range(n):
-        pairs = [(s(i), 0)] + ([] if i == gap else [(f(i), s(i)), (s(i + 1), f(i))])
-        for a, b in pairs:
-            row = np.zeros(n1)
-            row[a] += 1.0
-            row[b] -= 1.0
-            diffs.append(row)
-    e = np.vstack(diffs)
+    n1, free, e, hold, put = _stage1_structure(n, pinned, gap)
     c0 = np.vstack([r[:n1] for r in rows[0]]) if rows[0] else np.zeros((0, n1))
-    # x1 = H x1_hat + F u (H keeps the held components), C0 x1 = 0, min |E x1 - E x1_hat|:
-    # u = U0 x1_hat + Z w, U0 the least-norm solution of C0 F u = -C0 H x1_hat, Z = null(C0 F).
-    hold = np.zeros((n1, n1))
-    hold[held, held] = 1.0
-    put = np.zeros((n1, len(free)))
-    put[free, np.arange(len(free))] = 1.0
     cf = c0 @ put
     u0 = -np.linalg.pinv(cf, rcond=1e-12) @ c0 @ hold if cf.size else np.zeros((len(free), n1))
     z = _null_space(cf) if cf.size else np.eye(len(free))
@@ -449,6 +475,75 @@ def _red_solve(
         k = (np.eye(size) + correction) @ target
     k[:, 0] += 1.0 - k.sum(axis=1)  # exact affine invariance: the constant part goes to P00
     k.setflags(write=False)
+    return k
+
+
+def _red_solve_batch(
+    n: int, keys: list[tuple], pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
+) -> np.ndarray:
+    """``_red_solve`` of g spoke keys sharing (n, pinned, gap, skip): (g, 1 + 3n, 1 + 3n).
+
+    The held and free components, the difference rows D and stage 2's unknowns depend on those
+    alone, so only the G1 rows differ between the configurations: they are built for all at
+    once (``spoke_equations_batch``) and the least-squares steps run as stacked LAPACK calls
+    (``np.linalg.pinv``, ``svd`` on (g, rows, columns)), each matrix through the same routine
+    and cut-off as alone.  The null space of C0 F can differ in dimension between
+    configurations: they are split by its rank.  Groups without G1 rows (every spoke sharp)
+    take the one-key path."""
+    pinned = tuple(pinned) or (False,) * n
+    skip = tuple(skip) or pinned
+    size = 1 + 3 * n
+    live = [i for i in range(n) if not skip[i]]
+    if not live or not keys:
+        return np.array([_red_solve(n, key, pinned, gap, skip, q_weight) for key in keys]).reshape(len(keys), size, size)
+    s = lambda i: 1 + (i % n)  # noqa: E731
+    f = lambda i: 1 + n + (i % n)  # noqa: E731
+    q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
+    g_count = len(keys)
+    spokes = np.array([[np.nan if x is None else x for x in spoke] for key in keys for spoke in key], dtype=np.float64)
+    eqs = spoke_equations_batch(*spokes.T).reshape(g_count, n, 6, -1)
+    rows = np.zeros((2, g_count, len(live), size))  # G_0 and G_1 rows of the constrained spokes
+    for r, i in enumerate(live):
+        slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
+                     a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
+        outside = np.delete(eqs[:, i, :2], list(slot_to_x), axis=-1)
+        assert np.allclose(outside, 0.0), "G_0, G_1 reach beyond the red slots"
+        for slot, col in slot_to_x.items():
+            rows[:, :, r, col] += np.moveaxis(eqs[:, i, :2, slot], 1, 0)
+    n1, free, e, hold, put = _stage1_structure(n, pinned, gap)
+    c0 = rows[0][:, :, :n1]
+    cf = c0 @ put
+    if cf.shape[1] == 0 or cf.shape[2] == 0:
+        return np.array([_red_solve(n, key, pinned, gap, skip, q_weight) for key in keys]).reshape(g_count, size, size)
+    u0 = -np.linalg.pinv(cf, rcond=1e-12) @ c0 @ hold
+    _, sv, vt = np.linalg.svd(cf)  # _null_space, for all at once
+    rank = np.count_nonzero(sv > 1e-11 * np.maximum(1.0, sv.max(axis=1, initial=0.0))[:, None], axis=1)
+    ep = e @ put
+    residual = e - e @ hold - ep @ u0
+    k1 = np.empty((g_count, n1, n1))
+    for r in np.unique(rank):
+        sel = np.flatnonzero(rank == r)
+        z = np.swapaxes(vt[sel, r:], 1, 2)
+        w = np.linalg.pinv(ep @ z, rcond=1e-12) @ residual[sel]
+        k1[sel] = hold + put @ (u0[sel] + z @ w)
+    k1[:, :, 0] += 1.0 - k1.sum(axis=2)
+    stage1 = np.zeros((g_count, size, size))
+    stage1[:, :n1, :n1] = k1
+    stage1[:, n1:, n1:] = np.eye(n)
+    c = rows[1]
+    y = np.array([f(i) for i in range(n) if i != gap] + [q(i) for i in range(n) if not pinned[i]])
+    cy = c[:, :, y]
+    target = stage1.copy()
+    for i in range(n):
+        if not pinned[i] and not skip[i]:
+            target[:, q(i)] += 0.5 * stage1[:, s(i)]
+            target[:, q(i), s(i)] -= 0.5
+    inv_w = np.where(y >= q(0), 1.0 / q_weight, 1.0)
+    correction = np.zeros((g_count, size, size))
+    cyt = np.swapaxes(cy, 1, 2)
+    correction[:, y, :] = -(inv_w[:, None] * cyt) @ np.linalg.pinv((cy * inv_w) @ cyt, rcond=1e-12) @ c
+    k = (np.eye(size) + correction) @ target
+    k[:, :, 0] += 1.0 - k.sum(axis=2)
     return k
 
 
@@ -522,12 +617,7 @@ class G1Assembly:
             keys = self.spoke_keys(k).reshape(len(g.vertices), 4 * n)
             uniq, inverse = _unique_rows(keys)
             skip = tuple(bool(x) for x in g.unconstrained)
-            ops = np.array(
-                [
-                    _red_operator(n, tuple(cache_key(r) for r in row.reshape(n, 4)), pinned, g.gap, skip, Q_WEIGHT)
-                    for row in uniq
-                ]
-            )
+            ops = _red_operators(n, [tuple(cache_key(r) for r in row.reshape(n, 4)) for row in uniq], pinned, g.gap, skip, Q_WEIGHT)
             present = g.patches
 
             def source(i: int, j: int, m: int, mirror: tuple[int, int]) -> np.ndarray:

@@ -78,7 +78,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from patching.util.solve_cache import lookup
+from patching.util.memo import batching, memo
+from patching.util.solve_cache import lookup, lookup_many
 
 __all__ = [
     "VERTEX",
@@ -103,6 +104,7 @@ __all__ = [
     "limit_point_weights",
     "tangent_weights",
     "tangent_projector",
+    "limit_and_projectors",
 ]
 
 #: Index of the centre vertex in the local ordering [V, E_0..E_{n-1}, F_0..F_{n-1}].
@@ -688,25 +690,110 @@ class _Eigen(NamedTuple):
     projector: np.ndarray
 
 
-@functools.lru_cache(maxsize=4096)
-def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
-    """``_eigen_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one
-    is installed; an entry is trusted if its shapes fit the valence and the limit weights sum to 1)."""
-    size = 2 * len(key) + 1
+def _eigen_arrays(e: _Eigen) -> list[np.ndarray]:
+    """An eigen-structure as the cache's float arrays (eigenvalues split into real and
+    imaginary parts, complex or real as ``np.linalg.eigvals`` gave them)."""
+    ev = e.eigenvalues
+    return [ev.real, np.imag(ev), np.array([float(np.iscomplexobj(ev))]), e.limit, e.tangent, e.projector]
 
-    def solve():
-        e = _eigen_solve(key, angles, lengths)
-        ev = e.eigenvalues  # complex, or real when every eigenvalue is (np.linalg.eigvals)
-        return ev.real, np.imag(ev), np.array([float(np.iscomplexobj(ev))]), e.limit, e.tangent, e.projector
 
-    def valid(arrays) -> bool:
-        re, im, is_complex, limit, tangent, projector = arrays
-        return (re.shape == im.shape == limit.shape == (size,) and is_complex.shape == (1,)
-                and tangent.shape == (2, size) and projector.shape == (size - 1, size) and abs(limit.sum() - 1.0) <= 1e-9)
+def _eigen_valid(args: tuple, arrays: list[np.ndarray]) -> bool:
+    """A cache entry of ``_eigen(*args)`` is trusted if its shapes fit the valence and the
+    limit weights sum to 1."""
+    size = 2 * len(args[0]) + 1
+    re, im, is_complex, limit, tangent, projector = arrays
+    return (re.shape == im.shape == limit.shape == (size,) and is_complex.shape == (1,)
+            and tangent.shape == (2, size) and projector.shape == (size - 1, size) and abs(limit.sum() - 1.0) <= 1e-9)
 
-    re, im, is_complex, limit, tangent, projector = lookup("eigen_polyhedron", (key, angles, lengths), 6, solve, valid)
+
+def _eigen_from(arrays: list[np.ndarray]) -> _Eigen:
+    re, im, is_complex, limit, tangent, projector = arrays
     ev = re + 1j * im if is_complex[0] else re
     return _Eigen(_frozen(ev), _frozen(limit), _frozen(tangent), _frozen(projector))
+
+
+@memo(4096)
+def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
+    """``_eigen_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one
+    is installed; ``_eigen_valid`` judges an entry)."""
+    args = (key, angles, lengths)
+    arrays = lookup("eigen_polyhedron", args, 6, lambda: _eigen_arrays(_eigen_solve(*args)), lambda a: _eigen_valid(args, a))
+    return _eigen_from(arrays)
+
+
+def _eigen_many(keys: list[tuple[float, ...]], angles: str, lengths: str) -> list[_Eigen]:
+    """``_eigen`` of many keys: those not yet in the in-process memo are read from the store
+    or solved together, one batched solve per valence (``_eigen_solve_batch``)."""
+    if not batching():
+        return [_eigen(k, angles, lengths) for k in keys]
+    todo = list(dict.fromkeys(k for k in keys if not _eigen.known((k, angles, lengths))))
+
+    def solve_many(args_list: list[tuple]) -> list[list[np.ndarray]]:
+        by_valence: dict[int, list[int]] = {}
+        for i, args in enumerate(args_list):
+            by_valence.setdefault(len(args[0]), []).append(i)
+        out: list = [None] * len(args_list)
+        for rows in by_valence.values():
+            solved = _eigen_solve_batch([args_list[i][0] for i in rows], angles, lengths)
+            for i, e in zip(rows, solved):
+                out[i] = _eigen_arrays(e)
+        return out
+
+    if todo:
+        args_list = [(k, angles, lengths) for k in todo]
+        for args, arrays in zip(args_list, lookup_many("eigen_polyhedron", args_list, 6, solve_many, _eigen_valid)):
+            _eigen.prime(args, _eigen_from(arrays))
+    return [_eigen(k, angles, lengths) for k in keys]
+
+
+def _eigen_solve_batch(keys: list[tuple[float, ...]], angles: str, lengths: str) -> list[_Eigen]:
+    """``_eigen_solve`` of g keys of one valence in one vectorised pass: the local matrices by
+    ``_solve_batch`` and the eigenvalues, SVDs and 2x2 solves as stacked (g, size, size)
+    LAPACK calls, each matrix through the same routine as alone.  A failing configuration (no
+    bilinear root, a degenerate eigenvalue, no convergence) sends the batch to the one-key
+    path, which raises for it with its own message."""
+    try:
+        mat, p0, _, _, t_vec = _solve_batch(np.array(keys, dtype=np.float64), angles, lengths)
+        g, size, _ = mat.shape
+        lam = characteristic_scale((size - 1) // 2).lam
+        ev = np.linalg.eigvals(mat)
+        eye = np.eye(size)
+        _, sv, vt = np.linalg.svd(np.swapaxes(mat - eye, 1, 2))
+        _, sv2, vt2 = np.linalg.svd(np.swapaxes(mat - lam * eye, 1, 2))
+        if np.any(sv[:, -2] <= 1e-10 * sv[:, 0]) or np.any(sv2[:, -3] <= 1e-10 * sv2[:, 0]):
+            raise ValueError("degenerate")
+        limit = vt[:, -1] / vt[:, -1].sum(axis=1, keepdims=True)
+        right = p0 - t_vec[:, None, :] / (1.0 - lam)
+        left = vt2[:, -2:]
+        left = np.linalg.solve(left @ right, left)
+    except (ValueError, np.linalg.LinAlgError):
+        return [_eigen_solve(k, angles, lengths) for k in keys]
+    dmat = np.hstack([-np.ones((size - 1, 1)), np.eye(size - 1)])
+    projector = (dmat @ right) @ left
+    out = []
+    for j in range(g):
+        e = ev[j] if np.iscomplexobj(ev) and np.any(ev[j].imag != 0.0) else ev[j].real  # as eigvals alone
+        e = e[np.lexsort((-e.real, -np.round(np.abs(e), 12)))]
+        out.append(_Eigen(_frozen(e), _frozen(limit[j]), _frozen(left[j]), _frozen(projector[j])))
+    return out
+
+
+def limit_and_projectors(
+    intervals: np.ndarray, angles: str = "standard", lengths: str = "fourier"
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`limit_point_weights` and :func:`tangent_projector` of g vertices of one valence
+    at once: intervals (g, n) -> ((g, 2n+1), (g, 2n, 2n+1)).  The configurations not solved
+    before in this process (the same cache key: intervals scaled to maximum 1 and rounded)
+    are solved in one batched eigen-analysis (or read from the persistent cache); equal to
+    the one-vertex functions row for row."""
+    _check_choice("angles", angles, ANGLE_CHOICES)
+    _check_choice("lengths", lengths, LENGTH_CHOICES)
+    keys = [_key(row)[0] for row in np.asarray(intervals, dtype=np.float64)]
+    eig = _eigen_many(keys, angles, lengths)
+    n = np.shape(intervals)[-1]
+    if not eig:
+        return np.zeros((0, 2 * n + 1)), np.zeros((0, 2 * n, 2 * n + 1))
+    return np.stack([e.limit for e in eig]), np.stack([e.projector for e in eig])
 
 
 def _eigen_solve(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:

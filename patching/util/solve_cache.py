@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-__all__ = ["SolveStore", "MemoryStore", "current_store", "set_store", "source_digest", "entry_key", "encode", "decode", "lookup"]
+__all__ = ["SolveStore", "MemoryStore", "current_store", "set_store", "source_digest", "entry_key", "encode", "decode", "lookup", "lookup_many"]
 
 _MAGIC = b"NPSC1\n"
 
@@ -165,3 +165,44 @@ def lookup(
         raise ValueError(f"solve_cache.lookup: {problem} gave {len(arrays)} arrays, not {count}")
     store.put(key, encode(key, arrays))
     return arrays
+
+
+def lookup_many(
+    problem: str,
+    args_list: Sequence[tuple],
+    count: int,
+    solve_many: Callable[[list[tuple]], Sequence[Sequence[np.ndarray]]],
+    validate: Callable[[tuple, list[np.ndarray]], bool],
+) -> list[list[np.ndarray]]:
+    """``lookup`` for many problems of one kind at once: the entries the installed store holds
+    (each judged by ``validate(args, arrays)``) are read, and all the others are solved by one
+    call ``solve_many([args, ...])`` (a batched solver: one result per args, in order) and
+    stored, each under the same key as ``lookup`` would use, so the two share entries."""
+    store = _store
+    out: list[list[np.ndarray] | None] = [None] * len(args_list)
+    keys: list[str] = []
+    if store is not None:
+        keys = [entry_key(problem, args) for args in args_list]
+        for i, (key, args) in enumerate(zip(keys, args_list)):
+            data = store.get(key)
+            arrays = decode(key, data, count) if data is not None else None
+            if arrays is not None:
+                try:
+                    ok = bool(validate(args, arrays))
+                except (ValueError, IndexError, TypeError):
+                    ok = False
+                if ok:
+                    out[i] = arrays
+    missing = [i for i, arrays in enumerate(out) if arrays is None]
+    if missing:
+        solved = solve_many([args_list[i] for i in missing])
+        if len(solved) != len(missing):
+            raise ValueError(f"solve_cache.lookup_many: {problem} gave {len(solved)} results for {len(missing)} problems")
+        for i, result in zip(missing, solved):
+            arrays = [np.asarray(a, dtype=float) for a in result]
+            if len(arrays) != count:
+                raise ValueError(f"solve_cache.lookup_many: {problem} gave {len(arrays)} arrays, not {count}")
+            out[i] = arrays
+            if store is not None:
+                store.put(keys[i], encode(keys[i], arrays))
+    return out  # type: ignore[return-value]
