@@ -1,9 +1,10 @@
 """The EP's own blending function over four mesh families: the share with a single local
-maximum, by interval ratio, for each anchor rule and for the red G1 solve's stage 2 with and
-without the weighting of ``patching.extraordinary.g1_patches.Q_WEIGHT`` (not the default).
+maximum, by interval ratio, for each anchor rule and for the red G1 solve's variants: shipped
+(monotone spoke curves, ``patching.extraordinary.g1_patches.MONOTONE_SPOKES``), ``plain`` (the
+least change alone, as before 4 December 2026) and ``weighted`` (``Q_WEIGHT = 10``, not shipped).
 
     .venv/bin/python benchmarks/blending_families.py [--draws 8] [--samples 65] [--seed 0]
-                                                     [--ratios 2,5,10,20] [--modes NAME,...]
+                                                     [--ratios 2,5,10,20] [--modes shipped,plain]
 
 Families (every strip of the mesh gets an interval drawn uniformly from [1, R], no jitter;
 ``tests.helpers.with_random_intervals``):
@@ -58,34 +59,35 @@ from patching.extraordinary import g1_patches  # noqa: E402
 from patching.mesh.primitives import polycube  # noqa: E402
 from patching.subdivision import subdivide  # noqa: E402
 from patching.topology.tables import Topology  # noqa: E402
-from tests.helpers import ep_disc, with_random_intervals  # noqa: E402
+from tests.helpers import ep_disc, prism, with_random_intervals  # noqa: E402
 
-sys.path.insert(0, str(ROOT / "benchmarks"))
-from blending_prisms import prism  # noqa: E402
 
 #: Other maxima below this fraction of the peak are counted apart (column "<1%").
 VISIBLE = 0.01
-#: name -> (BuildOptions fields, stage-2 weight of q in the red solve)
+#: name -> (BuildOptions fields, overrides of ``g1_patches`` module settings: the red solve's
+#: stage-2 weight of q, the monotone spoke curves)
 MODES = {
-    "shipped": ({}, None),
-    "weighted": ({}, 10.0),
-    "extraction": ({"anchors": "extraction"}, None),
-    "faired": ({"anchors": "faired"}, None),
-    "modified": ({"eigen_angles": "modified"}, None),
-    "limit-fit": ({"anchors": "limit-fit"}, None),
+    "shipped": ({}, {}),
+    "plain": ({}, {"MONOTONE_SPOKES": False}),
+    "weighted": ({}, {"Q_WEIGHT": 10.0, "MONOTONE_SPOKES": False}),
+    "extraction": ({"anchors": "extraction"}, {}),
+    "faired": ({"anchors": "faired"}, {}),
+    "modified": ({"eigen_angles": "modified"}, {}),
+    "limit-fit": ({"anchors": "limit-fit"}, {}),
 }
 
 
 @contextmanager
-def q_weight(value):
-    """Build with another stage-2 weight (None: the shipped one)."""
-    old = g1_patches.Q_WEIGHT
-    if value is not None:
-        g1_patches.Q_WEIGHT = value
+def stage_settings(overrides: dict):
+    """Build with other ``g1_patches`` settings ({}: the shipped ones)."""
+    old = {name: getattr(g1_patches, name) for name in overrides}
+    for name, value in overrides.items():
+        setattr(g1_patches, name, value)
     try:
         yield
     finally:
-        g1_patches.Q_WEIGHT = old
+        for name, value in old.items():
+            setattr(g1_patches, name, value)
 
 
 def off_centre_disc(n: int, rings: np.ndarray, intervals: np.ndarray) -> patching.ControlMesh:
@@ -160,7 +162,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--ratios", default="2,5,10,20")
     ap.add_argument("--families", default="prism,polycube,disc,offcentre")
-    ap.add_argument("--modes", default="shipped,weighted")
+    ap.add_argument("--modes", default="shipped,plain")
     args = ap.parse_args()
     ratios = [float(r) for r in args.ratios.split(",")]
     families = args.families.split(",")
@@ -178,9 +180,9 @@ def main() -> None:
             for c, (mesh, eps) in enumerate(draws(family, ratio, args.draws, args.seed)):
                 topo = Topology(mesh)
                 for mode in modes:
-                    fields, weight = MODES[mode]
+                    fields, overrides = MODES[mode]
                     t0 = time.perf_counter()
-                    with q_weight(weight):
+                    with stage_settings(overrides):
                         op = patching.build_operator(mesh, topology=topo, **fields)
                     for v in eps.tolist():
                         h = ep_maxima(op, int(v), args.samples)

@@ -31,18 +31,7 @@ import patching  # noqa: E402
 from patching.evaluation.sampling import ep_quality  # noqa: E402
 from patching.subdivision import subdivide  # noqa: E402
 from patching.topology.tables import Topology  # noqa: E402
-from tests.helpers import lifted, with_random_intervals  # noqa: E402
-
-
-def prism(n: int, height: float = 1.0) -> patching.ControlMesh:
-    """The n-gonal prism of unit circumradius: caps 0 (top, outward up) and 1 (bottom)."""
-    a = 2 * np.pi * np.arange(n) / n
-    ring = np.stack([np.cos(a), np.sin(a)], axis=1)
-    verts = np.vstack([np.c_[ring, np.full(n, height)], np.c_[ring, np.zeros(n)]])
-    top = list(range(n))
-    bottom = [n + i for i in reversed(range(n))]
-    sides = [[n + i, n + (i + 1) % n, (i + 1) % n, i] for i in range(n)]
-    return patching.from_arrays(verts, [top, bottom, *sides], name=f"prism{n}")
+from tests.helpers import lifted, prism, with_random_intervals  # noqa: E402
 
 
 def main() -> None:

@@ -50,9 +50,9 @@ def folded_by_degree(surface: patching.BezierSurface, samples: int) -> dict[int,
 
 
 def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint", mode: str = "shipped") -> None:
-    from blending_families import MODES, q_weight
+    from blending_families import MODES, stage_settings
 
-    fields, weight = MODES[mode]
+    fields, overrides = MODES[mode]
     builds = refused = folding = 0
     patches = {3: 0, 5: 0}
     folded = {3: 0, 5: 0}
@@ -62,7 +62,7 @@ def census(ratio: float, seeds: int, samples: int, g1_solve: str = "joint", mode
         for seed in range(seeds):
             try:
                 mesh = with_random_intervals(patching.read_mesh(path), ratio, seed=seed)
-                with q_weight(weight):
+                with stage_settings(overrides):
                     surface = patching.build(mesh, g1_solve=g1_solve, **fields)
             except NupatchError:
                 refused += 1

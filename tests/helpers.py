@@ -448,6 +448,17 @@ def distances_to_surface(surface, qs) -> np.ndarray:
 
 
 
+def prism(n: int, height: float = 1.0) -> patching.ControlMesh:
+    """The n-gonal prism of unit circumradius: caps 0 (top, outward up) and 1 (bottom)."""
+    a = 2 * np.pi * np.arange(n) / n
+    ring = np.stack([np.cos(a), np.sin(a)], axis=1)
+    verts = np.vstack([np.c_[ring, np.full(n, height)], np.c_[ring, np.zeros(n)]])
+    top = list(range(n))
+    bottom = [n + i for i in reversed(range(n))]
+    sides = [[n + i, n + (i + 1) % n, (i + 1) % n, i] for i in range(n)]
+    return patching.from_arrays(verts, [top, bottom, *sides], name=f"prism{n}")
+
+
 # --- discs around one EP
 
 def ep_disc(

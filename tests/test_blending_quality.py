@@ -64,3 +64,55 @@ def test_interior_rules_agree_where_nothing_moved():
 def test_unknown_interior_rule_is_refused():
     with pytest.raises(ValueError, match="interior"):
         patching.build_operator(ep_disc(5), interior="quartic")
+
+
+
+
+#: (seed, cap EP) of ``benchmarks/blending_families.py``'s prism draws 3, 5 and 7 at ratio 20
+#: (hexagonal prisms refined once): with the plain red solve that cap EP's function had a
+#: second maximum (0.26% to 0.64% of the peak) at the valence-3 cap corners.
+PRISM_CASES = (
+    (657701828, 0),
+    pytest.param(1984456313, 0, marks=pytest.mark.slow),
+    pytest.param(1695932689, 1, marks=pytest.mark.slow),
+)
+
+
+@pytest.mark.parametrize(("seed", "cap"), PRISM_CASES)
+def test_prism_cap_function_has_one_maximum_with_monotone_spokes(seed, cap, monkeypatch):
+    """``g1_patches.MONOTONE_SPOKES``: the plain red solve bends the cap EP's function down
+    and up again along the cap corners' spokes (valence 3, regular far ends), a second
+    maximum at the corner (issue 19); the default keeps one maximum, G1 seams (numpy's
+    normals on a lifted copy, ``ep_quality``) and rows summing to one."""
+    from patching.extraordinary import g1_patches
+    from patching.subdivision import subdivide
+    from tests.helpers import prism, with_random_intervals
+
+    mesh = with_random_intervals(subdivide(prism(6), 1), 20.0, seed=seed)
+    topo = Topology(mesh)
+    assert topo.valence[cap] == 6 and sorted(set(topo.valence[topo.extraordinary].tolist())) == [3, 6]
+    heights = lifted(mesh, seed=1)
+    counts = []
+    for monotone in (True, False):
+        monkeypatch.setattr(g1_patches, "MONOTONE_SPOKES", monotone)
+        op = patching.build_operator(mesh, topology=topo)
+        assert np.abs(np.asarray(op.matrix.sum(axis=1)).ravel() - 1.0).max() < 1e-12
+        (q,) = ep_quality(op, heights, samples=33, eps=[cap], topology=topo)
+        assert q.max_normal_jump_deg < 1e-6
+        counts.append(q.local_maxima[cap])
+    assert counts == [1, 2]
+
+
+def test_monotone_spokes_leave_the_operator_alone_where_no_bound_breaks(monkeypatch):
+    """Uniform intervals (the discs of valence 3 to 7, a refined prism): the red solve bends no
+    EP function's spoke curve, so the default operator is the plain one, entry for entry."""
+    from patching.extraordinary import g1_patches
+    from patching.subdivision import subdivide
+    from tests.helpers import prism
+
+    meshes = [ep_disc(n) for n in (3, 5, 6, 7)] + [subdivide(prism(5), 1)]
+    default = [patching.build_operator(m).matrix for m in meshes]
+    monkeypatch.setattr(g1_patches, "MONOTONE_SPOKES", False)
+    for m, a in zip(meshes, default):
+        b = patching.build_operator(m).matrix
+        assert abs(a - b).max() == 0.0

@@ -470,6 +470,31 @@ def test_smoothtriangles_obj_tag():
     assert "smoothtriangles" not in format_obj(parse_obj(base))
 
 
+@pytest.mark.parametrize("creases", [{}, {(11, 12): 10.0, (12, 13): 10.0}, {(11, 12): 1.5}])
+def test_limit_face_budget_refused_in_one_line_with_or_without_finite_sharpness(monkeypatch, creases):
+    """The face budget of ``limit_operator`` is its own refusal: a mesh with no finite
+    sharpness (none, or only infinitely sharp creases, as a semi-sharp mesh refined until its
+    tags decayed, which ``anchors='limit-fit'`` hands over) used to raise a bare ValueError
+    from ``max()`` of no sharpness while building the message.  20 faces need 20 * 4 = 80
+    faces for one step (4^3 = 64 x for sharpness 1.5); a budget of 79 refuses each, naming
+    the faces and the budget; the step limit still names the sharpness."""
+    import patching.subdivision.limit as limit
+
+    grid = open_grid(6, 5)
+    mesh = from_arrays(grid.vertices, [list(grid.face(f)) for f in range(20)], creases=creases)
+    monkeypatch.setattr(limit, "MAX_LIMIT_FACES", 79)
+    with pytest.raises(UnsupportedError, match=r"needs \d subdivision step.*at most 79 faces"):
+        limit.limit_operator(mesh)
+    with pytest.raises(UnsupportedError, match="faces"):
+        limit_tangents(mesh)
+    monkeypatch.setattr(limit, "MAX_LIMIT_FACES", 20 * 4**3)
+    assert limit.limit_operator(mesh).shape == (mesh.n_vertices, mesh.n_vertices)
+    monkeypatch.setattr(limit, "MAX_LIMIT_STEPS", 1)
+    if creases.get((11, 12), 10.0) < 10.0:
+        with pytest.raises(UnsupportedError, match="sharpness 1.5 needs 3 steps"):
+            limit.limit_operator(mesh)
+
+
 @pytest.mark.skipif(not NONMANIFOLD, reason="opensubdiv-shapes folder absent")
 @pytest.mark.parametrize("path", NONMANIFOLD, ids=lambda p: p.stem)
 def test_nonmanifold_refused_naming_the_place(path):

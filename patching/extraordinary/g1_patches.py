@@ -58,6 +58,25 @@ patches of tests/test_folds.py's EP-rich sphere (the face points take the correc
 overshoot), and 30 gives a prism cap function two maxima beside the EP; so the default stays 1
 (G_1 is exact for every weight).  ``benchmarks/blending_families.py`` compares them.
 
+Monotone spoke curves (ours, the default: ``MONOTONE_SPOKES``).  The tail maxima above are
+the blending function of one EP (the prism cap centre) read along a spoke of another (the
+valence-3 cap corner), where the extraction's spoke curve s, q, P30, P40, P50 of that function
+falls monotonely and the red solve bends it back.  After stage 1 (P00, s_i fixed) the black
+step's P30 = q_i + P40/2 - s_i/2 + P00/10 - P50/10 lies between q_i and P40 exactly when q_i
+lies in [lo_i, hi_i] = [(P40 + s_i)/2 - (P00 - P50)/10, s_i] (for a falling curve; mirrored for
+a rising one), bounds on the operator's weights, since every function's values at the red
+inputs are its column x_c of the elevated extraction with the anchors folded in (topology and
+intervals only, never positions).  Per EP ring and for every EP's function c whose extraction
+spoke curve is monotone, the default operator K is checked; where it breaks a bound,
+``_monotone_red`` takes K + D with D the least change (summed over all the functions it
+touches at the red inputs, stage 2's weights) that keeps G_1 exact (C_y D = 0: the change
+lies in the G_1 solution space for every input), keeps rows summing to one, and puts every
+watched q_i back in its interval (a small QP).  Only EP functions are watched: watching all
+functions asks for changes up to 14 times the functions' size (the bounds of neighbouring
+vertices' functions conflict under G_1) and created maxima of 7% of the peak.  Rings where
+the default already keeps the bounds get exactly the default operator.  Measured in
+``benchmarks/blending_families.py`` (modes ``shipped`` and ``plain``) and docs/fidelity.md.
+
 Blue coefficients (printed formulas garbled; reconstructed): a quintic that is a
 degree-elevated cubic has q_2 = f_1(q_0, q_1, q_4, q_5) and q_3 = f_2(q_0, q_1, q_4, q_5) with
 f_1 = -3/10 a + b + 1/2 c - 1/5 d and f_2 = -1/5 a + 1/2 b + c - 3/10 d (checked by elevating
@@ -83,13 +102,21 @@ from patching.topology.tables import Topology
 from patching.util.memo import batching, memo
 from patching.util.solve_cache import lookup, lookup_many
 
-__all__ = ["Q_WEIGHT", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
+__all__ = ["Q_WEIGHT", "MONOTONE_SPOKES", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
 QUINTIC = 5
 #: Weight of the spoke-curve points q_i = P^i[2,0] against the face points f_i = P^i[1,1] in
 #: the red solve's stage 2, the least weighted change that satisfies G_1 (``_red_operator``;
 #: module docstring, "stage-2 weights").  1: the unweighted least change (the default).
 Q_WEIGHT = 1.0
+#: Keep the spoke curves of every EP's own blending function monotone where the red solve's
+#: least change would make them dip and rise (``_monotone_red``; module docstring, "monotone
+#: spoke curves").  False: the plain least change everywhere (for comparisons).
+MONOTONE_SPOKES = True
+#: ``_monotone_red``: ridge on the change of the weights themselves (relative to the functions'
+#: Gram matrix), and the largest change of a weight it accepts (else the default stays).
+RIDGE = 1e-6
+MAX_CHANGE = 1.0
 _CORNERS = CORNER_PARAMETERS.astype(np.int64)
 
 
@@ -404,6 +431,150 @@ def _stage1_structure(n: int, pinned: tuple, gap: int):
     return n1, free, np.vstack(diffs), hold, put
 
 
+def _red_rows(n: int, key: tuple, skip: tuple) -> dict[int, list[np.ndarray]]:
+    """G_0 (rows[0]) and G_1 (rows[1]) of every spoke not in ``skip`` as rows over the red
+    unknowns x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}] (``_red_solve``)."""
+    size = 1 + 3 * n
+    s = lambda i: 1 + (i % n)  # noqa: E731
+    f = lambda i: 1 + n + (i % n)  # noqa: E731
+    q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
+    rows: dict[int, list[np.ndarray]] = {0: [], 1: []}
+    for i, (aa, ab, b0, b1) in enumerate(key):
+        if skip[i]:
+            continue
+        g = spoke_equations(aa, ab, b0, b1)
+        # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
+        # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
+        slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
+                     a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
+        for k in (0, 1):
+            row = np.zeros(size)
+            for slot, col in slot_to_x.items():
+                row[col] += g[k, slot]
+            assert np.allclose(np.delete(g[k], list(slot_to_x)), 0.0), "G_0, G_1 reach beyond the red slots"
+            rows[k].append(row)
+    return rows
+
+
+def _stage2_unknowns(n: int, pinned: tuple, gap: int) -> np.ndarray:
+    """Indices into x of stage 2's unknowns y = [f (present patches), q (spokes not pinned)]."""
+    return np.array([1 + n + i for i in range(n) if i != gap] + [1 + 2 * n + i for i in range(n) if not pinned[i]])
+
+
+def _bounded_least_change(metric: np.ndarray, bmat: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
+    """argmin z^T metric z subject to lo <= bmat z <= hi (metric SPD), or None where z = 0
+    already satisfies it or no feasible point is found.
+
+    A simplified form of [GI83]'s dual active-set method (full steps: no partial step when a
+    multiplier changes sign): z = 0 is the unconstrained minimum; the most violated bound joins
+    the active set (as an equality), the equality problem is solved exactly
+    (z = A^-1 G^T (G A^-1 G^T)^-1 r), and an active bound whose multiplier has the wrong sign
+    (the solution would rather leave it) is dropped; it stops when no bound is violated, so a
+    returned z always satisfies every bound (it may not be the exact minimiser).  A few dozen bounds, so a few dozen small solves; SciPy's SLSQP
+    took about 40 ms a ring here, this about 1 ms.  Falls back to None after 4 m steps."""
+    tol = 1e-12 * max(1.0, float(np.abs(np.concatenate([lo, hi])).max()))
+    if np.all(lo <= tol) and np.all(hi >= -tol):
+        return None
+    a_inv = np.linalg.inv(metric)
+    active: dict[int, bool] = {}  # bound -> True: at lo (bmat z >= lo), False: at hi
+    z = np.zeros(metric.shape[0])
+    for _ in range(4 * bmat.shape[0] + 4):
+        value = bmat @ z
+        excess = np.maximum(lo - value, value - hi)
+        excess[list(active)] = -np.inf
+        j = int(np.argmax(excess))
+        if excess[j] <= tol:
+            return z
+        active[j] = bool(lo[j] - value[j] > value[j] - hi[j])
+        while True:
+            idx = list(active)
+            g = bmat[idx]
+            r = np.where([active[i] for i in idx], lo[idx], hi[idx])
+            schur = g @ a_inv @ g.T
+            mu = np.linalg.lstsq(schur, r, rcond=1e-13)[0]
+            wrong = [k for k, i in enumerate(idx) if (mu[k] < 0) == active[i] and abs(mu[k]) > 1e-14 * max(1.0, np.abs(mu).max())]
+            if not wrong or len(idx) == 1:
+                break
+            del active[idx[max(wrong, key=lambda k: abs(mu[k]))]]
+        z = a_inv @ g.T @ mu
+        if np.abs(g @ z - r).max() > 1e-9 * max(1.0, np.abs(r).max()):
+            return None  # dependent active bounds that cannot all hold
+    return None
+
+
+@lru_cache(maxsize=4096)
+def _change_space(n: int, key: tuple, pinned: tuple, skip: tuple):
+    """(y, C_y, Z) of one ring configuration: stage 2's unknowns, G_1 over them, and a basis
+    Z of the changes D of their rows (vec(D) row-major, D[r, j] at r (1 + 3n) + j) with
+    C_y D = 0 and D 1 = 0; None without G_1 rows."""
+    rows = _red_rows(n, key, skip)
+    if not rows[1]:
+        return None
+    size = 1 + 3 * n
+    y = _stage2_unknowns(n, pinned, -1)
+    cy = np.vstack(rows[1])[:, y]
+    fixed = np.vstack([np.kron(cy, np.eye(size)), np.kron(np.eye(y.size), np.ones((1, size)))])
+    out = (y, cy, _null_space(fixed))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def _monotone_red(
+    n: int, key: tuple, pinned: tuple, skip: tuple, q_weight: float, k: np.ndarray,
+    x: np.ndarray, bounds: list[tuple[int, int, float, float]],
+) -> np.ndarray | None:
+    """The red operator K of one closed ring, changed as little as possible so that the
+    blending functions keep the monotone spoke curves the extraction gave them (module
+    docstring, "monotone spoke curves"); None where no change inside G_1 can.
+
+    ``x``: (1 + 3n, C) the blending functions of the C control points that reach the ring, at
+    the red inputs x_hat (columns of the elevated extraction with the anchors folded in:
+    topology and intervals only); after the solve they are K x.  ``bounds``: (column c,
+    spoke i, lo, hi): the value of function c at q_i must lie in [lo, hi] (the bounds that
+    make the black step's P30 lie between q_i and P40 and q_i between s_i and P30).  Stage 2's
+    rows y = [f, q] of K change by D with C_y D = 0 (G_1 stays exact for every input), D 1 = 0
+    (rows still sum to one: affine invariance), and (D x)[q_i, c] putting the value on the
+    bound it broke (active set: a broken bound becomes an equality until none is broken), D
+    least in the change of every function it touches, sum_rows w_r |D_r x|^2 (w: 1 on f,
+    ``q_weight`` on q, stage 2's metric).  K + D stays linear in the control points."""
+    system = _change_space(n, key, pinned, skip)
+    if system is None:
+        return None
+    size = 1 + 3 * n
+    y, cy, basis = system
+    ny = y.size
+    row_of = {int(j): r for r, j in enumerate(y.tolist())}
+    w = np.where(y >= 1 + 2 * n, q_weight, 1.0)
+    # x x^T is singular where the functions do not span the inputs: a change D with D x = 0
+    # alters no function, and left free it lets the solver wander off to weights of 1e9 that
+    # break G_1 in rounding; a small ridge (the weights' own size) pins those directions.
+    gram = x @ x.T
+    gram += (RIDGE * np.trace(gram) / size + 1e-300) * np.eye(size)
+    v = k[y] @ x  # (ny, C)
+    # D = reshape(Z z): Z a basis of the D that keep G_1 and the row sums; the bounds on
+    # (D x)[q_i, c] are rows of B z.  Objective |M^(1/2) Z z|^2, M = W (x) (x x^T).
+    metric = basis.T @ np.kron(np.diag(w), gram) @ basis
+    b_rows, lo, hi = [], [], []
+    for col, i, low, high in bounds:
+        r = row_of[1 + 2 * n + i]
+        pick = np.zeros(ny * size)
+        pick[r * size : (r + 1) * size] = x[:, col]
+        b_rows.append(pick @ basis)
+        lo.append(low - v[r, col])
+        hi.append(high - v[r, col])
+    bmat, lo, hi = np.array(b_rows), np.array(lo), np.array(hi)
+    z = _bounded_least_change(metric, bmat, lo, hi)
+    if z is None:
+        return None
+    d = (basis @ z).reshape(ny, size)
+    if np.abs(d).max() > MAX_CHANGE or np.abs(cy @ d).max() > 1e-12:
+        return None
+    out = k.copy()
+    out[y] += d
+    return out
+
+
 def _red_solve(
     n: int, key: tuple, pinned: tuple = (), gap: int = -1, skip: tuple = (), q_weight: float = 1.0
 ) -> np.ndarray:
@@ -425,23 +596,8 @@ def _red_solve(
     skip = tuple(skip) or pinned
     size = 1 + 3 * n
     s = lambda i: 1 + (i % n)  # noqa: E731
-    f = lambda i: 1 + n + (i % n)  # noqa: E731
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
-    rows = {0: [], 1: []}
-    for i, (aa, ab, b0, b1) in enumerate(key):
-        if skip[i]:
-            continue
-        g = spoke_equations(aa, ab, b0, b1)
-        # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
-        # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
-        slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
-                     a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
-        for k in (0, 1):
-            row = np.zeros(size)
-            for slot, col in slot_to_x.items():
-                row[col] += g[k, slot]
-            assert np.allclose(np.delete(g[k], list(slot_to_x)), 0.0), "G_0, G_1 reach beyond the red slots"
-            rows[k].append(row)
+    rows = _red_rows(n, key, skip)
     n1, free, e, hold, put = _stage1_structure(n, pinned, gap)
     c0 = np.vstack([r[:n1] for r in rows[0]]) if rows[0] else np.zeros((0, n1))
     cf = c0 @ put
@@ -458,7 +614,7 @@ def _red_solve(
     if rows[1]:
         # Stage 2: y = [f, q] nearest to stage 1 under G_1, P00 and s fixed (and held ones).
         c = np.vstack(rows[1])
-        y = np.array([f(i) for i in range(n) if i != gap] + [q(i) for i in range(n) if not pinned[i]])
+        y = _stage2_unknowns(n, pinned, gap)
         cy = c[:, y]
         # The target of q_i is not its extraction value but q_hat_i + (s_i - s_hat_i) / 2: the
         # black step's P30 = q + P40/2 - s/2 + P00/10 - P50/10 then starts from its extraction
@@ -586,6 +742,13 @@ class G1Assembly:
             beta0[g.outgoing] = b0[:, : g.outgoing.shape[1]]
             self.beta0.append(b0)
         self.beta1 = [np.where(g.far >= 0, beta0[topo.twin[g.h]], np.nan) for g in groups]
+        #: rows -> those rows of the elevated extraction over the control points, anchors
+        #: folded in: every blending function before the G1 steps (``MONOTONE_SPOKES``);
+        #: None: the plain red solve.
+        self.reference = None
+        self.is_ep = np.zeros(topo.n_vertices, dtype=bool)
+        for g in groups:
+            self.is_ep[g.vertices] = True
 
     def without(self, inside: list[np.ndarray]) -> "G1Assembly":
         """The same assembly over the EPs not marked in ``inside`` ((E,) bool per group); groups
@@ -641,8 +804,61 @@ class G1Assembly:
                     continue
                 tgt += [self.rows(g, ii, 1, 0), self.rows(g, ii - 1, 0, 1), self.rows(g, ii, 2, 0), self.rows(g, ii - 1, 0, 2)]
                 unknown += [1 + ii, 1 + ii, 1 + 2 * n + ii, 1 + 2 * n + ii]
-            weights = ops[inverse][:, unknown, :]  # (E, T, S)
+            ops_e = ops[inverse]
+            if MONOTONE_SPOKES and self.reference is not None and g.gap < 0:
+                ops_e = self._monotone(g, ops_e, src, uniq, inverse, pinned, skip)
+            weights = ops_e[:, unknown, :]  # (E, T, S)
             mixer.set(np.stack(tgt, 1), src, weights)
+
+    def _monotone(self, g: EPGroup, ops: np.ndarray, src: np.ndarray, uniq, inverse, pinned, skip) -> np.ndarray:
+        """ops (E, 1 + 3n, 1 + 3n) with ``_monotone_red`` applied where the default red
+        operator bends back a spoke curve that the extraction gave monotone.  Per spoke i with
+        a regular far end (not pinned, not sharp) and per function c: with the extraction's
+        s, q, P30, P40, P50 of c monotone (either way), the solve's q_i must lie between s_i
+        and the value that puts P30 on P40, (P40 + s_i)/2 - (P00 - P50)/10 (black step); the
+        test runs over all EPs at once, the solves only at the EPs that break a bound."""
+        n = g.n
+        size = 1 + 3 * n
+        spoke = lambda j, m: np.stack([self.rows(g, i, j, m) for i in range(n)], 1)  # noqa: E731
+        rows = np.concatenate([src, spoke(3, 0), spoke(4, 0), spoke(5, 0)], axis=1)  # (E, size + 3n)
+        e_count, per = rows.shape
+        ref = self.reference(rows.ravel()).tocoo()
+        ep = ref.row // per
+        keys = ep * np.int64(ref.shape[1]) + ref.col
+        uk, inv = np.unique(keys, return_inverse=True)
+        starts = np.searchsorted(uk, np.arange(e_count, dtype=np.int64) * ref.shape[1])
+        local = np.arange(uk.size) - starts[uk // ref.shape[1]]
+        width = int(local.max(initial=-1)) + 1
+        x = np.zeros((e_count, per, width))
+        np.add.at(x, (ep, ref.row % per, local[inv]), ref.data)
+        of_ep = np.zeros((e_count, width), dtype=bool)  # the column is an EP's function
+        of_ep[uk // ref.shape[1], local] = self.is_ep[uk % ref.shape[1]]
+        v = np.einsum("eij,ejc->eic", ops, x[:, :size])
+        s_hat, q_hat = x[:, 1 : 1 + n], x[:, 1 + 2 * n : size]
+        p30_hat, p40, p50 = x[:, size : size + n], x[:, size + n : size + 2 * n], x[:, size + 2 * n :]
+        p00, s_new, q_new = v[:, :1], v[:, 1 : 1 + n], v[:, 1 + 2 * n :]
+        tol = 1e-10
+        steps = np.stack([s_hat - q_hat, q_hat - p30_hat, p30_hat - p40, p40 - p50])
+        down = (steps >= -tol).all(axis=0) & (steps > tol).any(axis=0)
+        up = (steps <= tol).all(axis=0) & (steps < -tol).any(axis=0)
+        flat = 0.5 * (p40 + s_new) - 0.1 * (p00 - p50)  # q that puts P30 on P40
+        lo = np.where(down, flat, np.where(up, s_new, np.nan))
+        hi = np.where(down, s_new, np.where(up, flat, np.nan))
+        free = (g.far < 0) & ~np.array(pinned, bool) & ~np.array(skip, bool)
+        watch = (down | up) & free[:, :, None] & (lo <= hi) & of_ep[:, None, :]
+        broken = watch & ((q_new < lo - 1e-12) | (q_new > hi + 1e-12))
+        bad = np.flatnonzero(broken.any(axis=(1, 2)))
+        if not bad.size:
+            return ops
+        ops = ops.copy()
+        for e in bad.tolist():
+            key = tuple(cache_key(r) for r in uniq[inverse[e]].reshape(n, 4))
+            i_idx, c_idx = np.nonzero(watch[e])
+            bounds = [(int(c), int(i), float(lo[e, i, c]), float(hi[e, i, c])) for i, c in zip(i_idx, c_idx)]
+            fixed = _monotone_red(n, key, pinned, skip, Q_WEIGHT, ops[e], x[e, :size], bounds)
+            if fixed is not None:
+                ops[e] = fixed
+        return ops
 
     def black(self, mixer: RowMixer) -> None:
         weights = np.array([[0.1, -0.5, 1.0, 0.5, -0.1]] * 2)  # P00, P10, P20, P40, P50

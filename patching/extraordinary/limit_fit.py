@@ -81,7 +81,7 @@ def limit_targets(mesh: ControlMesh, faces: np.ndarray) -> tuple[np.ndarray, sp.
     try:
         with np.errstate(divide="ignore", invalid="ignore"):
             limit = (limit_operator(level) @ total).tocsr()
-    except (NupatchError, ValueError) as exc:  # ValueError: limit.py's own message failing (sharp tags)
+    except NupatchError as exc:  # limit_operator's refusals (semi-sharp steps, face budget)
         raise UnsupportedError(
             f"anchors limit-fit: the subdivision limit surface is not available for this mesh ({exc})", mesh.name
         ) from exc

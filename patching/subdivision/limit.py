@@ -38,12 +38,22 @@ def _refine_for_limit(mesh: ControlMesh, rules: str, angles: str, crease_method:
     intervals on both halves of each spoke, [TLC] Fig. 8) plus one per unit of the largest
     finite sharpness.  Returns (level mesh, S_total, ids of the input vertices at that level)."""
     finite = [x for x in list(mesh.creases.values()) + list(mesh.corners.values()) if x < INFINITELY_SHARP]
-    steps = 1 + int(math.ceil(max(finite, default=0.0)))
-    if steps > MAX_LIMIT_STEPS or mesh.n_faces * 4**steps > MAX_LIMIT_FACES:
+    largest = max(finite, default=0.0)
+    steps = 1 + int(math.ceil(largest))
+    faces = mesh.n_faces * 4**steps
+    # Two refusals, each naming its own cause: the face budget alone can be exceeded by a
+    # large mesh with no finite sharpness at all (then there is no "largest sharpness").
+    if steps > MAX_LIMIT_STEPS:
         raise UnsupportedError(
-            f"limit of a semi-sharp feature of sharpness {max(finite):g} needs {steps} steps "
-            f"({mesh.n_faces * 4**steps} faces); this version takes at most {MAX_LIMIT_STEPS} "
-            f"steps and {MAX_LIMIT_FACES} faces",
+            f"limit of a semi-sharp feature of sharpness {largest:g} needs {steps} steps "
+            f"({faces} faces); this version takes at most {MAX_LIMIT_STEPS} steps",
+            mesh.name,
+        )
+    if faces > MAX_LIMIT_FACES:
+        why = f"1 plus {steps - 1} for sharpness {largest:g} to decay" if finite else "no finite sharpness"
+        raise UnsupportedError(
+            f"limit of {mesh.n_faces} faces needs {steps} subdivision step(s) ({why}), "
+            f"{faces} faces; this version builds at most {MAX_LIMIT_FACES} faces",
             mesh.name,
         )
     total = sp.identity(mesh.n_vertices, format="csr")
