@@ -644,7 +644,17 @@ def reference_matrix(
     groups = ep_groups(topo, eps, feats)
     anchor_rows = np.zeros((ext.n_anchors, n))
     if quintic:
+        import scipy.sparse as sp
+
         g1 = G1Assembly(topo, groups, face_row, angles)
+        # the blending functions before the G1 steps, which the monotone-spoke step reads
+        # (``G1Assembly.reference``): the elevated rows with the anchors' rows folded in
+        rule = "eigen-polyhedron" if anchors == "faired" else anchors
+        smooth_groups = [g for g in groups if g.theta is None]
+        first_anchor_rows = anchor_matrix(topo, smooth_groups, ext.anchor_column, n, rule=rule).toarray()
+        first_anchor_rows += _sector_anchors(topo, feats, groups, ext.anchor_column, n).toarray()
+        initial = rows[:, :n] + rows[:, n:] @ first_anchor_rows
+        g1.reference = lambda r: sp.csr_matrix(initial[np.asarray(r)])
         for step in [getattr(g1, name) for name in g1_steps] + ([g1.blue] if interior == "cubic-isocurves" else []):
             mixer = RowMixer(rows.shape[0])
             step(mixer)
