@@ -247,26 +247,29 @@ def cmd_subdivide(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     comment = (
         f"nupatch {patching.__version__}: {args.steps} subdivision step(s) of {mesh_path.name}, rules {args.rules}, "
-        f"angles {args.eigen_angles}, crease method {args.crease_method}"
+        f"angles {args.eigen_angles}, crease method "
     )
     if _has_control_vectors(args.mesh):  # [KSD] sec. 5: docs/curves.md, surfaces
         import warnings
 
         from export.curves import subdivide_with_vectors
 
-        if args.crease_method != "uniform" or args.eigen_angles != "standard" or args.triangles == "smooth":
-            raise NupatchError("control vectors take the default --crease-method, --eigen-angles and --triangles", args.mesh)
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="control vector ignored")
             mesh = read_control_mesh(mesh_path, args.intervals)
-        text = subdivide_with_vectors(mesh, mesh_path, args.steps, args.rules, comment)
+        options = subdivided.with_mesh_options(mesh, args)  # the tags, or the flags over them
+        if options.crease_method != "uniform" or args.eigen_angles != "standard" or options.triangle_subdivision == "smooth":
+            raise NupatchError("control vectors take the default --crease-method, --eigen-angles and --triangles "
+                               "(and no creasemethod or smoothtriangles tag)", args.mesh)
+        text = subdivide_with_vectors(mesh, mesh_path, args.steps, args.rules, comment + "uniform")
         atomic_write_text(out, text)
         _progress(args, f"{args.steps} step(s) with control vectors, wrote {out}")
         return 0
-    mesh = subdivided.with_triangle_option(read_control_mesh(mesh_path, args.intervals), args)
+    mesh = subdivided.with_mesh_options(read_control_mesh(mesh_path, args.intervals), args)
+    comment += mesh.crease_method
     if mesh.triangle_subdivision != "catmark":
         comment += f", triangles {mesh.triangle_subdivision}"
-    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles, crease_method=args.crease_method)
+    refined = subdivide(mesh, args.steps, rules=args.rules, angles=args.eigen_angles)
     atomic_write_text(out, format_obj(refined, comment) + rules_tag(args.rules) + "\n")
     _progress(args, f"{refined.n_faces} faces from {mesh.n_faces} in {args.steps} step(s), wrote {out} in {time.perf_counter() - start:.2f} s")
     return 0
@@ -460,8 +463,9 @@ def _parser(only: str | None = None) -> argparse.ArgumentParser:
             help="eigen-polyhedron angles at non-uniform EPs: standard, or modified ([ZTL]); --angles is its former name",
         )
         p.add_argument(
-            "--crease-method", choices=CREASE_METHODS, default="uniform",
-            help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv only)",
+            "--crease-method", choices=CREASE_METHODS, default=None,
+            help="how semi-sharp sharpness decays per step (chaikin: OpenSubdiv's CREASE_CHAIKIN, --rules opensubdiv "
+            "only); default: the mesh's 't creasemethod 0/0/1 chaikin' tag, else uniform",
         )
         p.add_argument(
             "--triangles", choices=TRIANGLE_SUBDIVISIONS, default=None,

@@ -50,7 +50,7 @@ def _flat(result: SubdividedMesh) -> SubdividedMesh:
 
 
 def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "loop", normals: str = "shading",
-                       variant: str = "b", rules: str = "opensubdiv", crease_method: str = "uniform",
+                       variant: str = "b", rules: str = "opensubdiv", crease_method: str | None = None,
                        darts: str = "smooth") -> Sampled:
     """The refined mesh as ``export.render.Sampled`` triangles with the chosen normals (module
     docstring); curvatures are zero (not drawn), the overlay lines are the control mesh's edges."""
@@ -72,7 +72,7 @@ def subdivided_sampled(mesh: patching.ControlMesh, levels: int, scheme: str = "l
 def render_subdivided(mesh: patching.ControlMesh, path: str | os.PathLike, levels: int, scheme: str = "loop",
                       normals: str = "shading", variant: str = "b", mode: str = "shaded",
                       size: tuple[int, int] = (800, 600), overlay: bool = False, renderer: str = "auto",
-                      rules: str = "opensubdiv", crease_method: str = "uniform", darts: str = "smooth",
+                      rules: str = "opensubdiv", crease_method: str | None = None, darts: str = "smooth",
                       picture=None) -> str:
     """Draw ``mesh`` refined ``levels`` steps with ``normals`` to the PNG ``path`` (atomically);
     mode "shaded" or "zebra"; darts as ``patching.shading.shading_operator``; picture an
@@ -101,11 +101,12 @@ def run_render_subdivided(args: argparse.Namespace, size: tuple[int, int], progr
         raise NupatchError(f"-n must be a number of steps >= 1 to draw normals, got {args.levels}", "-n")
     check_output_path(out)
     start = time.perf_counter()
-    mesh = patching.read_mesh(source)
+    from .subdivided import with_mesh_options
+
+    mesh = with_mesh_options(patching.read_mesh(source), args)  # --crease-method over the mesh's tag
     mode = "zebra" if args.zebra else "shaded"
     used = render_subdivided(mesh, out, args.levels, args.scheme, args.normals, args.shading_variant, mode, size,
-                             overlay=args.mesh, renderer=args.renderer, rules=args.rules,
-                             crease_method=args.crease_method)
+                             overlay=args.mesh, renderer=args.renderer, rules=args.rules)
     if progress:
         progress(args, f"drew {out} ({args.scheme} x{args.levels}, {args.normals} normals, {mode}, {used}) "
                        f"in {time.perf_counter() - start:.2f} s")
@@ -125,5 +126,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --normals shading: blend weights at sharp vertices, b (0, default) or a (as smooth)")
     p.add_argument("--rules", choices=("opensubdiv", "seed"), default="opensubdiv",
                    help="with --normals --scheme catmark: the rule set (default opensubdiv)")
-    p.add_argument("--crease-method", choices=("uniform", "chaikin"), default="uniform",
-                   help="with --normals: how semi-sharp sharpness decays (default uniform)")
+    p.add_argument("--crease-method", choices=("uniform", "chaikin"), default=None,
+                   help="with --normals: how semi-sharp sharpness decays (default: the mesh's "
+                        "'t creasemethod' tag, else uniform)")

@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # patching.shading (and patching.loop) only when a subdivide 
 
 from .atomic import atomic_output
 
-__all__ = ["OUTPUT_SUFFIXES", "run_subdivide", "split_by_normal", "with_triangle_option", "write_subdivided_glb", "write_subdivided_obj"]
+__all__ = ["OUTPUT_SUFFIXES", "run_subdivide", "split_by_normal", "with_mesh_options", "write_subdivided_glb", "write_subdivided_obj"]
 
 OUTPUT_SUFFIXES = (".obj", ".glb")
 
@@ -87,14 +87,23 @@ def write_subdivided_glb(result: SubdividedMesh, path) -> None:
         Path(tmp).write_bytes(data)
 
 
-def with_triangle_option(mesh: patching.ControlMesh, args: argparse.Namespace) -> patching.ControlMesh:
-    """The mesh with ``--triangles`` as its triangle rule when given, else with its own tag
-    (``t smoothtriangles``)."""
+def with_mesh_options(mesh: patching.ControlMesh, args: argparse.Namespace) -> patching.ControlMesh:
+    """The mesh with ``--triangles`` and ``--crease-method`` as its triangle rule and crease
+    method where given, else with its own tags (``t smoothtriangles``, ``t creasemethod``).  A
+    flag that overrides a tag drops the tag's line from the mesh's locations, so that errors
+    about the option do not name a line that did not choose it."""
     import dataclasses
 
-    if getattr(args, "triangles", None) is None:
+    changes = {}
+    if getattr(args, "triangles", None) is not None:
+        changes["triangle_subdivision"] = args.triangles
+    if getattr(args, "crease_method", None) is not None:
+        changes["crease_method"] = args.crease_method
+    if not changes:
         return mesh
-    return dataclasses.replace(mesh, triangle_subdivision=args.triangles)
+    dropped = {("tag", "smoothtriangles") if k == "triangle_subdivision" else ("tag", "creasemethod") for k in changes}
+    locations = {k: v for k, v in mesh.locations.items() if k not in dropped}
+    return dataclasses.replace(mesh, locations=locations, **changes)
 
 
 def run_subdivide(args: argparse.Namespace, progress=None) -> int:
@@ -114,9 +123,8 @@ def run_subdivide(args: argparse.Namespace, progress=None) -> int:
         raise NupatchError("--normals needs at least one subdivision step (-n 1 or more)", "-n")
     check_output_path(out)
     start = time.perf_counter()
-    mesh = with_triangle_option(patching.read_mesh(mesh_path), args)
-    op = shading_operator(mesh, args.steps, args.scheme, args.normals, args.shading_variant,
-                          rules=args.rules, crease_method=args.crease_method)
+    mesh = with_mesh_options(patching.read_mesh(mesh_path), args)
+    op = shading_operator(mesh, args.steps, args.scheme, args.normals, args.shading_variant, rules=args.rules)
     result = op.evaluate(mesh.vertices)
     comment = (
         f"nupatch {patching.__version__}: {args.steps} {args.scheme} step(s) of {mesh_path.name}, normals {args.normals}"

@@ -4,8 +4,10 @@ Every ``UsdGeom.Mesh`` prim of the stage (instance proxies included) becomes par
 ``ControlMesh``: its ``points`` in the prim's world transform (``ComputeLocalToWorldTransform``
 at the default time, row vectors: p_world = p M), ``faceVertexCounts``/``Indices``,
 ``creaseIndices``/``Lengths``/``Sharpnesses`` (one sharpness per crease, or one per crease edge),
-``cornerIndices``/``Sharpnesses``, ``holeIndices`` and ``interpolateBoundary``
-(``none`` 0, ``edgeAndCorner`` 1, ``edgeOnly`` 2).  Sharpness values are OpenSubdiv's, as in
+``cornerIndices``/``Sharpnesses``, ``holeIndices``, ``interpolateBoundary``
+(``none`` 0, ``edgeAndCorner`` 1, ``edgeOnly`` 2) and ``triangleSubdivisionRule``
+(``catmullClark``, ``smooth``: ``ControlMesh.triangle_subdivision`` "catmark", "smooth", as the
+OBJ tag ``t smoothtriangles``); prims that differ in either of the last two are refused.  Sharpness values are OpenSubdiv's, as in
 the OBJ tags (>= 10 infinitely sharp).  A ``leftHanded`` prim, or a world transform that
 mirrors, has its faces reversed so that normals point the way the prim's do.
 
@@ -38,6 +40,7 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 INTERVALS_PRIMVAR = "nupatch:intervals"
 _BOUNDARY = {"none": 0, "edgeAndCorner": 1, "edgeOnly": 2}
 _SCHEMES = ("catmullClark", "none")
+_TRIANGLES = {"catmullClark": "catmark", "smooth": "smooth"}
 
 
 def _pxr():
@@ -105,6 +108,7 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
     holes: list[int] = []
     locations: dict[tuple, str] = {}
     boundary_of: dict[int, str] = {}
+    triangles_of: dict[str, str] = {}
     n_v = n_f = 0
     for prim in prims:
         where = f"{source}: prim {prim.GetPath()}"
@@ -212,6 +216,12 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
         if boundary not in _BOUNDARY:
             raise MeshError(f"interpolateBoundary '{boundary}' is not one of {', '.join(_BOUNDARY)}", where)
         boundary_of[_BOUNDARY[boundary]] = where
+        rule = _get(mesh.GetTriangleSubdivisionRuleAttr(), Usd) or "catmullClark"
+        if rule not in _TRIANGLES:
+            raise MeshError(f"triangleSubdivisionRule '{rule}' is not one of {', '.join(_TRIANGLES)}", where)
+        triangles_of[_TRIANGLES[rule]] = where
+        if rule == "smooth":
+            locations[("tag", "smoothtriangles")] = where
         for f in range(fvc.size):
             locations[("face", n_f + f)] = f"{where} face {f}"
         vertices.append(world)
@@ -219,11 +229,12 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
         counts.append(fvc)
         n_v += len(p)
         n_f += fvc.size
-    if len(boundary_of) > 1:
-        (k1, w1), (k2, w2) = list(boundary_of.items())[:2]
-        raise UnsupportedError(
-            f"mesh prims with different interpolateBoundary ({k1} at {w1}, {k2}) cannot build as one surface", w2
-        )
+    for attr, values in (("interpolateBoundary", boundary_of), ("triangleSubdivisionRule", triangles_of)):
+        if len(values) > 1:
+            (k1, w1), (k2, w2) = list(values.items())[:2]
+            raise UnsupportedError(
+                f"mesh prims with different {attr} ({k1} at {w1}, {k2}) cannot build as one surface", w2
+            )
     counts_all = np.concatenate(counts)
     flat = np.concatenate(faces_flat)
     offsets_all = np.concatenate([[0], np.cumsum(counts_all)])
@@ -240,12 +251,14 @@ def stage_mesh(stage, source: str, name: str) -> ControlMesh:
         interpolate_boundary=next(iter(boundary_of)),
         name=name,
         locations=locations,
+        triangle_subdivision=next(iter(triangles_of)),
     )
 
 
 def write_usd(mesh: ControlMesh, path: str | os.PathLike, prim_path: str = "/mesh") -> Path:
     """Write ``mesh`` as one UsdGeom.Mesh prim with its creases, corners, holes,
-    interpolateBoundary and the ``nupatch:intervals`` primvar (every face-vertex's edge)."""
+    interpolateBoundary, triangleSubdivisionRule (when smooth) and the ``nupatch:intervals``
+    primvar (every face-vertex's edge)."""
     from export.atomic import atomic_output
 
     Sdf, Usd, UsdGeom, Vt = _pxr()
@@ -263,6 +276,8 @@ def write_usd(mesh: ControlMesh, path: str | os.PathLike, prim_path: str = "/mes
         m.CreateFaceVertexIndicesAttr(mesh.face_vertices.tolist())
         m.CreateSubdivisionSchemeAttr("catmullClark")
         m.CreateInterpolateBoundaryAttr({v: k for k, v in _BOUNDARY.items()}[mesh.interpolate_boundary])
+        if mesh.triangle_subdivision != "catmark":
+            m.CreateTriangleSubdivisionRuleAttr({v: k for k, v in _TRIANGLES.items()}[mesh.triangle_subdivision])
         if mesh.creases:
             keys = list(mesh.creases)
             m.CreateCreaseIndicesAttr([v for k in keys for v in k])

@@ -161,3 +161,75 @@ def test_subdivide_smooth_triangles_tag_and_flag(tmp_path, run_cli):
     _one_line_error(run_cli("subdivide", tagged, "-o", out), out, "tagged.obj:11")
     step = tmp_path / "tagged.step"
     _one_line_error(run_cli("build", tagged, "-o", step), step, "tagged.obj:11")
+
+
+GRID_CREASES = "t crease 2/1/0 11 12 1.2\nt crease 2/1/0 12 13 0.3\nt crease 2/1/0 12 17 2.5\n"
+
+
+def _grid_obj() -> str:
+    """An open 5 x 4 grid of quads (6 x 5 points, 0-based id 5 i + j) with crease sharpness
+    that changes at vertex 12, where Chaikin's rule differs from uniform creasing."""
+    pts = "".join(f"v {i} {j} {0.1 * ((i * 7 + j * 3) % 5)}\n" for i in range(6) for j in range(5))
+    quads = "".join(f"f {5 * i + j + 1} {5 * (i + 1) + j + 1} {5 * (i + 1) + j + 2} {5 * i + j + 2}\n" for i in range(5) for j in range(4))
+    return pts + quads + GRID_CREASES
+
+
+def test_subdivide_creasemethod_tag_and_flag(tmp_path, cli_main):
+    """``t creasemethod 0/0/1 chaikin`` gives ``--crease-method chaikin``'s points; the flag
+    overrides the tag both ways; the refined file keeps the tag (and only a chaikin one); rules
+    seed and build refuse the tag in one line naming its line, writing nothing."""
+    tagged, plain = tmp_path / "tagged.obj", tmp_path / "plain.obj"
+    tagged.write_text(_grid_obj() + "t creasemethod 0/0/1 chaikin\n")
+    plain.write_text(_grid_obj())
+    line = len(tagged.read_text().splitlines())
+
+    def run(src, *flags):
+        out = tmp_path / f"out{len(list(tmp_path.iterdir()))}.obj"
+        res = cli_main("subdivide", src, "-n", "3", "--rules", "opensubdiv", *flags, "-o", out, "-q")
+        assert res.returncode == 0, res.stderr
+        return out
+
+    want = patching.read_mesh(run(plain, "--crease-method", "chaikin"))
+    base = patching.read_mesh(run(plain))
+    assert np.abs(want.vertices - base.vertices).max() > 1e-3
+    got = run(tagged)
+    assert np.abs(patching.read_mesh(got).vertices - want.vertices).max() == 0
+    assert "t creasemethod 0/0/1 chaikin" in got.read_text() and "crease method chaikin" in got.read_text()
+    assert patching.read_mesh(got).crease_method == "chaikin"
+    over = run(tagged, "--crease-method", "uniform")
+    assert np.abs(patching.read_mesh(over).vertices - base.vertices).max() == 0
+    assert "creasemethod" not in over.read_text()
+    # Loop and the shading path: the tag is read there too
+    for scheme in ("catmark", "loop"):
+        src = tagged if scheme == "catmark" else tmp_path / "tet_tagged.obj"
+        if scheme == "loop":
+            src.write_text(TET + "t crease 2/1/0 0 1 2.0\nt crease 2/1/0 1 2 0.5\nt creasemethod 0/0/1 chaikin\n")
+            (tmp_path / "tet_plain.obj").write_text(TET + "t crease 2/1/0 0 1 2.0\nt crease 2/1/0 1 2 0.5\n")
+        plain_src = plain if scheme == "catmark" else tmp_path / "tet_plain.obj"
+        a = run(src, "--scheme", scheme, "--normals", "shading")
+        b = run(plain_src, "--scheme", scheme, "--normals", "shading", "--crease-method", "chaikin")
+        c = run(plain_src, "--scheme", scheme, "--normals", "shading")
+        assert a.read_text().split("\n", 1)[1] == b.read_text().split("\n", 1)[1] != c.read_text().split("\n", 1)[1]
+    out = tmp_path / "seed.obj"
+    _one_line_error(cli_main("subdivide", tagged, "-o", out), out, f"tagged.obj:{line}")
+    step = tmp_path / "tagged.step"
+    _one_line_error(cli_main("build", tagged, "-o", step), step, f"tagged.obj:{line}")
+
+
+def test_render_normals_reads_the_creasemethod_tag():
+    """``render --normals`` draws ``subdivided_sampled``: the tag chooses its crease method, an
+    explicit one wins (the CLI's ``--crease-method`` is set on the mesh, export.subdivided)."""
+    from export.render_subdivided import subdivided_sampled
+    from export.subdivided import with_mesh_options
+    from types import SimpleNamespace
+
+    tagged = parse_obj(_grid_obj() + "t creasemethod 0/0/1 chaikin\n", source="t.obj")
+    plain = parse_obj(_grid_obj(), source="p.obj")
+    a = subdivided_sampled(tagged, 3, "catmark", "shading")
+    b = subdivided_sampled(plain, 3, "catmark", "shading", crease_method="chaikin")
+    c = subdivided_sampled(with_mesh_options(tagged, SimpleNamespace(crease_method="uniform")), 3, "catmark", "shading")
+    d = subdivided_sampled(plain, 3, "catmark", "shading")
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(c.points, d.points)
+    assert np.abs(a.points - d.points).max() > 1e-3
+    assert ("tag", "creasemethod") not in with_mesh_options(tagged, SimpleNamespace(crease_method="uniform")).locations

@@ -1469,3 +1469,133 @@ def test_opensubdiv_rules_at_interior_valence_2(name, make, creasing):
         expected = reference_points(mesh, "opensubdiv", creasing)
         assert np.abs(S @ mesh.vertices - expected).max() <= TIGHT * 10, f"step {step}"
         mesh = child
+
+
+def test_creasemethod_obj_tag():
+    """``t creasemethod 0/0/1 chaikin`` ([OSD]'s regression form; ``uniform``, and ``normal`` as
+    OpenSubdiv's own readers call it, give uniform creasing) sets ``ControlMesh.crease_method``;
+    anything else is an error naming the line; format_obj writes the tag back only for chaikin."""
+    from patching.errors import TagError
+    from patching.mesh.obj import format_obj, parse_obj
+
+    base = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    assert parse_obj(base).crease_method == "uniform"
+    for value, expected in (("uniform", "uniform"), ("normal", "uniform"), ("chaikin", "chaikin")):
+        assert parse_obj(base + f"t creasemethod 0/0/1 {value}\n").crease_method == expected
+    for bad in ("0/0/1 hbr", "1/0/0 1", "0/0/2 chaikin chaikin", "0/1/1 1.0 chaikin"):
+        with pytest.raises(TagError, match="creasemethod takes one string") as err:
+            parse_obj(base + "t creasemethod " + bad + "\n", source="x.obj")
+        assert "(x.obj:6)" in str(err.value) and "\n" not in str(err.value)
+    chaikin = parse_obj(base + "t creasemethod 0/0/1 chaikin\n")
+    text = format_obj(chaikin)
+    assert text.endswith("t creasemethod 0/0/1 chaikin\n") and parse_obj(text).crease_method == "chaikin"
+    assert "creasemethod" not in format_obj(parse_obj(base + "t creasemethod 0/0/1 uniform\n"))
+    from patching.errors import TagError as _TagError
+
+    with pytest.raises(_TagError, match="crease_method"):
+        from_arrays(open_grid(2, 2).vertices, [[0, 2, 3, 1]], crease_method="hbr")
+
+
+def _chaikin_grid(tag: str = "chaikin", creases=None):
+    grid = open_grid(6, 5)
+    faces = [list(grid.face(f)) for f in range(grid.n_faces)]
+    creases = creases or {(11, 12): 1.2, (12, 13): 0.3, (12, 17): 2.5}
+    return from_arrays(grid.vertices, faces, creases=creases, crease_method=tag)
+
+
+def test_mesh_crease_method_is_the_default_and_the_argument_wins():
+    """subdivision_operator/subdivide/limit_points without crease_method use the mesh's; an
+    explicit one wins; the refined mesh carries the method used; rules seed refuse a chaikin
+    taken from the mesh naming the tag's line."""
+    tagged, plain = _chaikin_grid(), _chaikin_grid("uniform")
+    S_tag, child = subdivision_operator(tagged, rules="opensubdiv")
+    S_chk, _ = subdivision_operator(plain, rules="opensubdiv", crease_method="chaikin")
+    S_uni, _ = subdivision_operator(tagged, rules="opensubdiv", crease_method="uniform")
+    assert abs(S_tag - S_chk).max() == 0 and abs(S_uni - subdivision_operator(plain, rules="opensubdiv")[0]).max() == 0
+    assert child.crease_method == "chaikin" and child.creases != subdivision_operator(plain, rules="opensubdiv")[1].creases
+    assert subdivision_operator(plain, rules="opensubdiv", crease_method="chaikin")[1].crease_method == "chaikin"
+    np.testing.assert_array_equal(subdivide(tagged, 3, rules="opensubdiv").vertices,
+                                  subdivide(plain, 3, rules="opensubdiv", crease_method="chaikin").vertices)
+    assert np.abs(subdivide(tagged, 3, rules="opensubdiv").vertices - subdivide(plain, 3, rules="opensubdiv").vertices).max() > 1e-3
+    np.testing.assert_array_equal(limit_points(tagged, rules="opensubdiv"),
+                                  limit_points(plain, rules="opensubdiv", crease_method="chaikin"))
+    subdivide(tagged, 1, crease_method="uniform")  # rules seed with the tag overridden
+    from patching.mesh.obj import format_obj, parse_obj
+
+    obj = parse_obj(format_obj(tagged), source="g.obj")
+    with pytest.raises(UnsupportedError, match="chaikin creasing") as err:
+        subdivide(obj, 1)
+    line = format_obj(tagged).splitlines().index("t creasemethod 0/0/1 chaikin") + 1
+    assert f"(g.obj:{line})" in str(err.value)
+
+
+def test_loop_uses_the_mesh_crease_method():
+    from patching.loop import loop_subdivide
+    from patching.loop.limit import loop_limit_points
+
+    tet = [(1, 1, 1), (-1, -1, 1), (-1, 1, -1), (1, -1, -1)]
+    faces = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]
+    creases = {(0, 1): 2.0, (1, 2): 0.5, (0, 2): 1.5}
+    tagged = from_arrays(tet, faces, creases=creases, crease_method="chaikin")
+    plain = from_arrays(tet, faces, creases=creases)
+    want = loop_subdivide(plain, 2, crease_method="chaikin")
+    got = loop_subdivide(tagged, 2)
+    np.testing.assert_array_equal(got.vertices, want.vertices)
+    assert got.crease_method == "chaikin" and np.abs(got.vertices - loop_subdivide(plain, 2).vertices).max() > 1e-3
+    np.testing.assert_array_equal(loop_subdivide(tagged, 2, crease_method="uniform").vertices, loop_subdivide(plain, 2).vertices)
+    np.testing.assert_array_equal(loop_limit_points(tagged), loop_limit_points(plain, crease_method="chaikin"))
+
+
+def test_build_refuses_chaikin_only_where_it_would_differ():
+    """build refines semi-sharp tags with uniform creasing: a chaikin mesh whose first step
+    would differ is refused in one line naming the tag; one whose semi-sharp edges are equal at
+    every vertex (Chaikin = uniform there, at every step) builds as without the tag."""
+    import patching
+    from patching.mesh.obj import format_obj, parse_obj
+
+    mixed = parse_obj(format_obj(_chaikin_grid()), source="m.obj")
+    with pytest.raises(UnsupportedError, match="CREASE_CHAIKIN") as err:
+        patching.build(mixed)
+    assert "m.obj:" in str(err.value) and "\n" not in str(err.value)
+    equal = {(11, 12): 1.5, (12, 13): 1.5, (13, 14): 1.5}
+    a = patching.build(_chaikin_grid("chaikin", equal))
+    b = patching.build(_chaikin_grid("uniform", equal))
+    np.testing.assert_array_equal(np.concatenate([g.coefficients.ravel() for g in a.groups]),
+                                  np.concatenate([g.coefficients.ravel() for g in b.groups]))
+    # and Chaikin does equal uniform creasing on that mesh, step after step
+    np.testing.assert_array_equal(subdivide(_chaikin_grid("chaikin", equal), 3, rules="opensubdiv").vertices,
+                                  subdivide(_chaikin_grid("uniform", equal), 3, rules="opensubdiv").vertices)
+
+
+def _creasemethod_shapes():
+    if not SHAPES_DIR.is_dir():
+        return []
+    return sorted(p for p in SHAPES_DIR.glob("*.obj") if "t creasemethod" in p.read_text(errors="replace"))
+
+
+@pytest.mark.skipif(not _creasemethod_shapes(), reason="no OpenSubdiv shape here carries t creasemethod (or the folder is absent)")
+@pytest.mark.parametrize("path", _creasemethod_shapes(), ids=lambda p: p.stem)
+def test_opensubdiv_shapes_with_the_creasemethod_tag(path):
+    mesh = _read(path)
+    plain = dataclasses.replace(mesh, crease_method="uniform")
+    np.testing.assert_array_equal(subdivide(mesh, 2, rules="opensubdiv").vertices,
+                                  subdivide(plain, 2, rules="opensubdiv", crease_method=mesh.crease_method).vertices)
+
+
+def test_cube_creases1_with_the_tag_appended_equals_the_explicit_method():
+    """catmark_cube_creases1 (Chaikin differs there, test_chaikin_halves_on_cube_creases1) with
+    OpenSubdiv's ``t creasemethod 0/0/1 chaikin`` appended: two steps equal the explicit
+    ``crease_method="chaikin"`` on the file as it is."""
+    path = SHAPES_DIR / "catmark_cube_creases1.obj"
+    if not path.is_file():
+        pytest.skip("opensubdiv-shapes folder absent")
+    from patching.mesh.obj import parse_obj
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tagged = parse_obj(path.read_text() + "t creasemethod 0/0/1 chaikin\n", source=str(path))
+    plain = _read(path)
+    assert tagged.crease_method == "chaikin" and plain.crease_method == "uniform"
+    np.testing.assert_array_equal(subdivide(tagged, 2, rules="opensubdiv").vertices,
+                                  subdivide(plain, 2, rules="opensubdiv", crease_method="chaikin").vertices)
+    assert np.abs(subdivide(tagged, 2, rules="opensubdiv").vertices - subdivide(plain, 2, rules="opensubdiv").vertices).max() > 1e-3

@@ -406,3 +406,55 @@ def test_a_polygonal_mesh_prim_builds_with_a_warning_naming_it(tmp_path, run_cli
     result = run_cli("build", path, "-o", tmp_path / "flat.step")
     assert result.returncode == 0 and (tmp_path / "flat.step").is_file()
     assert "subdivisionScheme 'none'" in result.stderr and "/Cube/Cube" in result.stderr
+
+
+def _pyramid(rule: str | None = None):
+    """A square pyramid (four triangles on a quad), its points exact in float32."""
+    pts = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (1, 1, 1.5)]
+    faces = [[0, 3, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]
+    return patching.from_arrays(pts, faces, triangle_subdivision=rule or "catmark", name="pyramid")
+
+
+def test_triangle_subdivision_rule_is_read_and_written(tmp_path):
+    from export.usd import write_usd
+    from patching.subdivision import subdivide
+
+    plain = _pyramid()
+    for rule, expected in ((None, "catmark"), ("catmullClark", "catmark"), ("smooth", "smooth")):
+        path = tmp_path / f"pyramid_{rule}.usda"
+        write_stage(plain, path, intervals=False)
+        stage = Usd.Stage.Open(str(path))
+        if rule is not None:
+            UsdGeom.Mesh(stage.GetPrimAtPath("/root/part")).CreateTriangleSubdivisionRuleAttr(rule)
+        stage.GetRootLayer().Save()
+        mesh = read_usd(path)
+        assert mesh.triangle_subdivision == expected
+        # the rule reaches the refinement: equal to the same mesh given the rule in Python
+        ref = subdivide(_pyramid(expected), 2, rules="opensubdiv")
+        np.testing.assert_array_equal(subdivide(mesh, 2, rules="opensubdiv").vertices, ref.vertices)
+    assert not np.array_equal(subdivide(_pyramid("smooth"), 1, rules="opensubdiv").vertices,
+                              subdivide(plain, 1, rules="opensubdiv").vertices)
+    # and write_usd writes it back (only when smooth, as the OBJ writer)
+    back = read_usd(write_usd(_pyramid("smooth"), tmp_path / "back.usda"))
+    assert back.triangle_subdivision == "smooth"
+    assert "triangleSubdivisionRule" not in (write_usd(plain, tmp_path / "plain.usda")).read_text()
+
+
+def test_prims_with_different_triangle_rules_are_refused(tmp_path, capsys):
+    path = tmp_path / "two.usda"
+    write_stage(_pyramid(), path, intervals=False)
+    stage = Usd.Stage.Open(str(path))
+    second = UsdGeom.Mesh.Define(stage, "/other/pyramid")
+    plain = _pyramid()
+    second.CreatePointsAttr([Gf.Vec3f(*map(float, p + 10)) for p in plain.vertices])
+    second.CreateFaceVertexCountsAttr(plain.face_sizes.tolist())
+    second.CreateFaceVertexIndicesAttr(plain.face_vertices.tolist())
+    second.CreateTriangleSubdivisionRuleAttr("smooth")
+    stage.GetRootLayer().Save()
+    _one_line_error(_main(capsys, "info", path), "different triangleSubdivisionRule", "/other/pyramid")
+    bad = tmp_path / "bad.usda"
+    write_stage(plain, bad, intervals=False)
+    stage = Usd.Stage.Open(str(bad))
+    UsdGeom.Mesh(stage.GetPrimAtPath("/root/part")).CreateTriangleSubdivisionRuleAttr("loopy")
+    stage.GetRootLayer().Save()
+    _one_line_error(_main(capsys, "info", bad), "triangleSubdivisionRule 'loopy'", "/root/part")

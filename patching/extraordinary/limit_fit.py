@@ -58,7 +58,7 @@ def limit_targets(mesh: ControlMesh, faces: np.ndarray) -> tuple[np.ndarray, sp.
     level, total = mesh, None
     for _ in range(STEPS):
         topo = Topology(level) if level is not mesh else topo0
-        s, child = subdivision_operator(level)
+        s, child = subdivision_operator(level, crease_method="uniform")
         nf, ne = level.n_faces, topo.n_edges
         off = level.face_offsets
         new_owned, new_inside = [], []

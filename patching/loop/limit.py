@@ -71,12 +71,12 @@ def _corner_child_loop(topo: Topology, corners: np.ndarray) -> np.ndarray:
     return 12 * f + 3 * local  # child face 4 f + local, the vertex at its corner 0
 
 
-def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform", refine: str = "local") -> LimitMasks:
+def loop_limit_masks(mesh: ControlMesh, crease_method: str | None = None, refine: str = "local") -> LimitMasks:
     """Limit masks of a triangle mesh under Loop subdivision (module docstring).
 
     refine: "local" (default: only the neighbourhood of semi-sharp features is refined until
     they have decayed, ``patching.loop.local``) or "global" (the whole mesh, the reference)."""
-    LoopLevel.of(mesh, crease_method)
+    crease_method = LoopLevel.of(mesh, crease_method).crease_method  # None: the mesh's
     k = decay_steps(mesh)
     if refine == "local":
         scheme = LocalScheme("loop", lambda m: loop_operator(m, crease_method))
@@ -112,12 +112,12 @@ def loop_limit_masks(mesh: ControlMesh, crease_method: str = "uniform", refine: 
     return LimitMasks(sub.position[:nv0].tocsr(), label0, rv0, sub, index)
 
 
-def loop_limit_points(mesh: ControlMesh, crease_method: str = "uniform") -> np.ndarray:
+def loop_limit_points(mesh: ControlMesh, crease_method: str | None = None) -> np.ndarray:
     """(v, 3) limit-surface point of every control vertex."""
     return loop_limit_masks(mesh, crease_method).points(mesh.vertices)
 
 
-def loop_limit_normals(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[np.ndarray, np.ndarray]:
+def loop_limit_normals(mesh: ControlMesh, crease_method: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(region_of_corner (H,), normals (r, 3)): the unit limit normal of every region."""
     m = loop_limit_masks(mesh, crease_method)
     return m.region_of_corner, m.normals(mesh.vertices)

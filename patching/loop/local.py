@@ -129,7 +129,7 @@ def submesh(mesh: ControlMesh, topo: Topology, faces: np.ndarray):
     sub = ControlMesh(
         vertices=np.ascontiguousarray(mesh.vertices[s2g]), face_vertices=local.astype(np.int64).ravel(),
         face_offsets=off.astype(np.int64), intervals={}, creases=creases, corners=corners, holes=holes,
-        interpolate_boundary=mesh.interpolate_boundary, name=mesh.name,
+        interpolate_boundary=mesh.interpolate_boundary, name=mesh.name, crease_method=mesh.crease_method,
     )
     return sub, s2g, f, hmap
 

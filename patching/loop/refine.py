@@ -47,7 +47,7 @@ from .rules import (
     loop_beta,
     vertex_rule,
 )
-from patching.rules.crease import CREASE_METHODS, INFINITE, child_edge_sharpness, decrement
+from patching.rules.crease import CREASE_METHODS, INFINITE, child_edge_sharpness, crease_method_of, decrement
 
 __all__ = ["LoopLevel", "child_topology", "loop_operator", "loop_subdivide", "CREASE_METHODS", "MAX_LOOP_FACES"]
 
@@ -91,9 +91,11 @@ class LoopLevel:
     vs: np.ndarray  # (v,) vertex sharpness, inf where infinitely sharp
     child_es: np.ndarray  # (e, 2) child half sharpness at edges[:, k]
     holes: np.ndarray  # (f,) bool
+    crease_method: str = "uniform"  # the one used for child_es, carried by the child mesh
 
     @classmethod
-    def of(cls, mesh: ControlMesh, crease_method: str = "uniform") -> "LoopLevel":
+    def of(cls, mesh: ControlMesh, crease_method: str | None = None) -> "LoopLevel":
+        crease_method = crease_method_of(mesh, crease_method)
         if crease_method not in CREASE_METHODS:
             raise UnsupportedError(f"crease method must be one of {', '.join(CREASE_METHODS)}, got '{crease_method}'")
         check_loop_mesh(mesh)
@@ -121,7 +123,7 @@ class LoopLevel:
             holes[t.face[bad_v[t.origin]]] = True
         child = child_edge_sharpness(np.where(np.isinf(es), INFINITE, es), t.edges, t.n_vertices, crease_method)
         child[child >= INFINITE] = np.inf
-        return cls(mesh, t, es, vs, child, holes)
+        return cls(mesh, t, es, vs, child, holes, crease_method)
 
     @cached_property
     def sharp_count(self) -> np.ndarray:
@@ -267,6 +269,7 @@ def _child_mesh(L: LoopLevel, points: np.ndarray) -> ControlMesh:
         holes=frozenset(int(x) for x in holes.tolist()),
         interpolate_boundary=L.mesh.interpolate_boundary,
         name=L.mesh.name,
+        crease_method=L.crease_method,
     )
 
 
@@ -331,13 +334,14 @@ def child_topology(t: Topology, child: ControlMesh) -> Topology:
     return c
 
 
-def loop_operator(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[sp.csr_matrix, ControlMesh]:
+def loop_operator(mesh: ControlMesh, crease_method: str | None = None) -> tuple[sp.csr_matrix, ControlMesh]:
     """One Loop step: (S, refined mesh).
 
     S: (n_vertices + n_edges, n_vertices) CSR float64, rows sum to 1, from topology and tags
     only (child numbering in the module docstring); the refined mesh's positions are
     ``S @ mesh.vertices`` and it carries the child tags.  crease_method: "uniform" (sharpness
-    drops by 1) or "chaikin" ([OSD] ``CREASE_CHAIKIN``).  Raises UnsupportedError (non-triangle
+    drops by 1) or "chaikin" ([OSD] ``CREASE_CHAIKIN``); None (default): the mesh's
+    ``crease_method`` (OBJ tag ``t creasemethod``).  Raises UnsupportedError (non-triangle
     face), KnotError (non-uniform intervals), MeshError (non-manifold input).
     """
     L = LoopLevel.of(mesh, crease_method)
@@ -347,13 +351,14 @@ def loop_operator(mesh: ControlMesh, crease_method: str = "uniform") -> tuple[sp
     return s, child
 
 
-def level_operator(mesh: ControlMesh, crease_method: str = "uniform") -> sp.csr_matrix:
+def level_operator(mesh: ControlMesh, crease_method: str | None = None) -> sp.csr_matrix:
     """S of ``loop_operator`` without building the refined mesh."""
     return _operator(LoopLevel.of(mesh, crease_method))
 
 
-def loop_subdivide(mesh: ControlMesh, steps: int = 1, crease_method: str = "uniform") -> ControlMesh:
-    """``steps`` Loop steps: the refined mesh with its tags."""
+def loop_subdivide(mesh: ControlMesh, steps: int = 1, crease_method: str | None = None) -> ControlMesh:
+    """``steps`` Loop steps: the refined mesh with its tags (crease_method as ``loop_operator``)."""
+    crease_method = crease_method_of(mesh, crease_method)
     if steps < 0:
         raise UnsupportedError(f"number of subdivision steps must be >= 0, got {steps}")
     faces = mesh.n_faces * 4**steps

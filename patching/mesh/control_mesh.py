@@ -16,12 +16,14 @@ import numpy as np
 
 from patching.errors import KnotError, MeshError, TagError
 
-__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE", "TRIANGLE_SUBDIVISIONS"]
+__all__ = ["ControlMesh", "from_arrays", "NupatchWarning", "INFINITELY_SHARP", "MAX_COORDINATE", "TRIANGLE_SUBDIVISIONS", "CREASE_METHODS"]
 
 #: Crease sharpness at or above which an edge is infinitely sharp (docs/input.md, OpenSubdiv's 10).
 INFINITELY_SHARP = 10.0
 #: Triangle rules of Catmull-Clark ([OSD] ``Sdc::Options::TRI_SUB_CATMARK``, ``TRI_SUB_SMOOTH``).
 TRIANGLE_SUBDIVISIONS = ("catmark", "smooth")
+#: How semi-sharp sharpness decays a step ([OSD] ``Sdc::Options::CreasingMethod``).
+CREASE_METHODS = ("uniform", "chaikin")
 #: Largest coordinate magnitude taken: beyond it STL and glTF (32-bit floats, up to 3.4e38)
 #: would hold infinities, OpenCASCADE's meshing hangs (from 1e77) and volumes overflow.
 MAX_COORDINATE = 1e30
@@ -42,6 +44,9 @@ class ControlMesh:
     triangle_subdivision: "catmark" (default) or "smooth", [OSD]'s ``Sdc::Options::
     TriangleSubdivision`` (the OBJ tag ``t smoothtriangles 0/0/1 smooth``): "smooth" changes the
     smooth edge points beside triangles under ``subdivide(rules="opensubdiv")`` only.
+    crease_method: "uniform" (default) or "chaikin", [OSD]'s ``Sdc::Options::CreasingMethod``
+    (the OBJ tag ``t creasemethod 0/0/1 chaikin``): how semi-sharp sharpness decays per
+    subdivision step (``patching.rules.crease``); the default of every subdivision function.
     name: product name for export.  locations: where each item came from, for error messages,
     keyed ("vertex", v), ("face", f), ("interval", (a, b)), ("crease", (a, b)), ("corner", v),
     ("hole", f); values such as "part.obj:12".
@@ -58,6 +63,7 @@ class ControlMesh:
     name: str = "mesh"
     locations: Mapping[tuple, str] = field(default_factory=dict)
     triangle_subdivision: str = "catmark"
+    crease_method: str = "uniform"
 
     def __repr__(self) -> str:
         """Counts, not arrays: ``ControlMesh('cube', 8 vertices, 6 faces, 0 intervals, ...)``."""
@@ -131,6 +137,7 @@ def from_arrays(
     name: str = "mesh",
     locations: Mapping[tuple, str] | None = None,
     triangle_subdivision: str = "catmark",
+    crease_method: str = "uniform",
 ) -> ControlMesh:
     """Build and check a ControlMesh from arrays (docs/input.md, the Python API).
 
@@ -255,6 +262,8 @@ def from_arrays(
         raise TagError(f"interpolateboundary must be 0, 1 or 2, got {interpolate_boundary}", name)
     if triangle_subdivision not in TRIANGLE_SUBDIVISIONS:
         raise TagError(f"triangle_subdivision must be 'catmark' or 'smooth', not {triangle_subdivision!r}", "triangle_subdivision")
+    if crease_method not in CREASE_METHODS:
+        raise TagError(f"crease_method must be 'uniform' or 'chaikin', not {crease_method!r}", "crease_method")
 
     return ControlMesh(
         vertices=verts,
@@ -268,4 +277,5 @@ def from_arrays(
         name=name,
         locations=locations,
         triangle_subdivision=triangle_subdivision,
+        crease_method=crease_method,
     )

@@ -6,7 +6,8 @@ Reads ``v x y z``, ``f a b c ...`` (1-based, ``a/t/n`` forms, negative relative 
 (vertices; one value or one per vertex), ``hole`` (faces), ``interpolateboundary`` (0, 1, 2),
 ``smoothtriangles`` ([OSD]'s regression form ``0/0/1 catmark|smooth``, as ``far_utils.h``
 reads it; Hbr's ``1/0/0 2`` is the same rule, ``1/0/0 1`` Hbr's older one, which OpenSubdiv 3
-dropped: ignored with a warning).
+dropped: ignored with a warning), ``creasemethod`` ([OSD]'s ``0/0/1 chaikin``; ``normal``,
+its name for uniform creasing, or ``uniform``).
 Edge sharpness as [ZBK] sec. 3.5's implementation writes it: ``fs s_0 .. s_{k-1}`` gives the
 next face's k edges, ``as y s_0 .. s_{k-1}`` the next y faces' edges, value i on the edge from
 the face's vertex i to vertex i + 1 in the file's order (the paper says "clockwise", meaning
@@ -33,7 +34,7 @@ __all__ = ["read_obj", "parse_obj", "format_obj"]
 
 # Statements an OBJ file may carry that say nothing about the control mesh.
 _IGNORED = {"maplib", "usemap", "vt", "vp", "o", "g", "s", "usemtl", "mtllib", "l", "p", "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole_", "scrv", "sp", "end", "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech", "stech", "call", "csh"}
-_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "smoothtriangles", "nupatch_rules"}
+_KNOWN_TAGS = {"interval", "crease", "corner", "hole", "interpolateboundary", "smoothtriangles", "creasemethod", "nupatch_rules"}
 
 
 def read_obj(path: str | os.PathLike) -> ControlMesh:
@@ -113,7 +114,7 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
     corners: dict[int, float] = {}
     holes: list[int] = []
     interpolate_boundary = 1
-    options = {"triangle_subdivision": "catmark"}  # mesh-wide tags other than interpolateboundary
+    options = {"triangle_subdivision": "catmark", "crease_method": "uniform"}  # mesh-wide tags other than interpolateboundary
     locations: dict[tuple, str] = {}
     pending: list[tuple[list[float], str]] = []  # fs/as sharpness waiting for their faces
     face_sharp: dict[tuple[int, int], float] = {}
@@ -212,6 +213,7 @@ def parse_obj(text: str, source: str = "<string>", name: str = "mesh") -> Contro
         name=name,
         locations=locations,
         triangle_subdivision=options["triangle_subdivision"],
+        crease_method=options["crease_method"],
     )
 
 
@@ -289,6 +291,13 @@ def _parse_tag(parts, loc, intervals, creases, corners, holes, interpolate_bound
             warnings.warn(NupatchWarning(f"smoothtriangles 1 (Hbr's old triangle rule, not in OpenSubdiv 3) ignored ({loc})"), stacklevel=3)
         else:
             raise TagError("smoothtriangles takes one string, catmark or smooth (t smoothtriangles 0/0/1 smooth)", loc)
+    elif tag == "creasemethod":
+        locations[("tag", "creasemethod")] = loc
+        # OpenSubdiv's readers (far_utils.h) and RenderMan say "normal" for CREASE_UNIFORM.
+        method = {"uniform": "uniform", "normal": "uniform", "chaikin": "chaikin"}.get(strings[0] if nstring else "")
+        if nint or nfloat or nstring != 1 or method is None:
+            raise TagError("creasemethod takes one string, uniform (or normal) or chaikin (t creasemethod 0/0/1 chaikin)", loc)
+        options["crease_method"] = method
     return interpolate_boundary
 
 
@@ -316,6 +325,8 @@ def format_obj(mesh: ControlMesh, comment: str = "") -> str:
     parts.append(f"t interpolateboundary 1/0/0 {mesh.interpolate_boundary}\n")
     if mesh.triangle_subdivision != "catmark":
         parts.append(f"t smoothtriangles 0/0/1 {mesh.triangle_subdivision}\n")
+    if mesh.crease_method != "uniform":
+        parts.append(f"t creasemethod 0/0/1 {mesh.crease_method}\n")
     return "".join(parts)
 
 

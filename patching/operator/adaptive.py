@@ -384,7 +384,7 @@ def adaptive_operator(
         parents = _grow(inc, refine, MARGIN)
         if np.any(parents & (depth <= RULE_DEPTH)):
             raise AssertionError(f"level {j}: refined faces too close to the window's cut (a bug)")
-        s_step, child = subdivision_operator(lev.mesh, rules="seed")
+        s_step, child = subdivision_operator(lev.mesh, rules="seed", crease_method="uniform")
         offsets = lev.mesh.face_offsets
         child_faces = np.zeros(child.n_faces, dtype=bool)
         child_faces[np.flatnonzero(parents[topo.face])] = True  # child face h of parent half-edge h

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
+
 from patching.errors import MeshError, UnsupportedError
 from patching.mesh.control_mesh import ControlMesh
 from patching.operator.adaptive import adaptive_surface_operator
@@ -13,6 +15,7 @@ from patching.operator.assembly import assemble
 from patching.operator.refinement import refinement_plan, uniform_operator
 from patching.operator.refusals import refuse_input
 from patching.options import BuildOptions
+from patching.rules.crease import INFINITE, child_edge_sharpness
 from patching.surface import BezierSurface, SurfaceOperator
 from patching.topology.tables import Topology
 from patching.util.blas import one_blas_thread
@@ -64,6 +67,7 @@ def build_operator(
             mesh.where("tag", "smoothtriangles"),
         )
     topo = topology or Topology(mesh)
+    _refuse_chaikin(mesh, topo)
     # Tears are judged on the user's mesh, before any refinement: refining a zero strip
     # inserts its knot again (two halves of interval 0), so the refined mesh shows runs of
     # 2^k zero strips where the surface is the input's.
@@ -93,3 +97,24 @@ def build(mesh: ControlMesh, options: BuildOptions | None = None, **option_field
             causes.append("zero knot intervals leave faces of no parametric area")
         raise MeshError(f"no face gives a patch, the surface is empty ({'; '.join(causes) or 'no face has a patch'})", mesh.name)
     return surface
+
+
+def _refuse_chaikin(mesh: ControlMesh, topo: Topology) -> None:
+    """Build refines semi-sharp tags with uniform creasing (``refinement``, ``adaptive``: rules
+    "seed"), so a mesh tagged ``crease_method="chaikin"`` is refused where Chaikin's first step
+    would give another sharpness: at a vertex with two or more semi-sharp edges of different
+    sharpness (``patching.rules.crease``).  Where the first step agrees, every later one does
+    too (the semi-sharp edges at each vertex stay equal, all dropping by 1), so the surface is
+    the same and the build goes on."""
+    if mesh.crease_method != "chaikin":
+        return
+    es = topo.edge_sharpness.copy()
+    es[topo.edge_is_boundary] = np.inf  # boundary edges are infinitely sharp in every mode
+    chaikin = child_edge_sharpness(np.minimum(es, INFINITE), topo.edges, topo.n_vertices, "chaikin")
+    uniform = child_edge_sharpness(np.minimum(es, INFINITE), topo.edges, topo.n_vertices, "uniform")
+    if not np.allclose(chaikin, uniform, rtol=0.0, atol=1e-12):  # rounding in Chaikin's mean of equal values
+        raise UnsupportedError(
+            "chaikin creasing (t creasemethod, OpenSubdiv's CREASE_CHAIKIN) is a rule of 'nupatch subdivide "
+            "--rules opensubdiv' only: build decays semi-sharp creases uniformly (remove the tag)",
+            mesh.locations.get(("tag", "creasemethod"), "crease_method"),
+        )

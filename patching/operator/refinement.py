@@ -83,7 +83,7 @@ def patched_mesh(mesh: ControlMesh, refinement: str = "auto") -> ControlMesh:
         raise UnsupportedError(f"{mesh.name} is refined adaptively: its patches cover faces of several levels", mesh.name)
     points = mesh.vertices
     for _ in range(steps):
-        step, mesh = subdivision_operator(mesh, rules="seed")
+        step, mesh = subdivision_operator(mesh, rules="seed", crease_method="uniform")
         points = step @ points
     return mesh.with_positions(points) if steps else mesh
 
@@ -95,7 +95,7 @@ def uniform_operator(mesh: ControlMesh, steps: int, options: BuildOptions) -> Su
     composed = sp.identity(mesh.n_vertices, format="csr")
     refined = mesh
     for _ in range(steps):
-        step, refined = subdivision_operator(refined, rules="seed")
+        step, refined = subdivision_operator(refined, rules="seed", crease_method="uniform")
         composed = (step @ composed).tocsr()
     inner = assemble(refined, Topology(refined), options)
     return SurfaceOperator(product(inner.matrix, composed), inner.groups, inner.topology, mesh.name)

@@ -21,12 +21,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["INFINITE", "CREASE_METHODS", "decrement", "child_edge_sharpness"]
+from patching.mesh.control_mesh import CREASE_METHODS, ControlMesh
+
+__all__ = ["INFINITE", "CREASE_METHODS", "decrement", "child_edge_sharpness", "crease_method_of"]
 
 #: Sharpness at or above which a feature is infinitely sharp ([OSD] ``SHARPNESS_INFINITE``).
 INFINITE = 10.0
-#: How semi-sharp sharpness decays a step ([OSD] ``Sdc::Options::CreasingMethod``).
-CREASE_METHODS = ("uniform", "chaikin")
+
+
+def crease_method_of(mesh: ControlMesh, crease_method: str | None) -> str:
+    """The crease method a subdivision function uses: ``crease_method`` when given, else the
+    mesh's own (``ControlMesh.crease_method``, the OBJ tag ``t creasemethod``)."""
+    return mesh.crease_method if crease_method is None else crease_method
 
 
 def decrement(s) -> np.ndarray:

@@ -23,6 +23,7 @@ from ..loop.cache import topology_of
 from ..loop.limit import LimitMasks, loop_limit_masks
 from ..loop.local import LocalScheme, local_limit
 from ..loop.stationary import corner_regions, level_rules, select_regions, stationary_masks
+from ..rules.crease import crease_method_of
 
 __all__ = ["limit_masks", "SCHEMES"]
 
@@ -47,11 +48,14 @@ def check_uniform_catmark(mesh: ControlMesh) -> None:
         )
 
 
-def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_method: str = "uniform",
+def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_method: str | None = None,
                         refine: str = "local") -> LimitMasks:
     """Limit masks of a mesh under Catmull-Clark (rules as ``patching.subdivision``); refine
-    "local" (default) or "global" as ``patching.loop.limit.loop_limit_masks``."""
+    "local" (default) or "global" as ``patching.loop.limit.loop_limit_masks``; crease_method None:
+    the mesh's."""
     from ..subdivision import subdivision_operator
+
+    crease_method = crease_method_of(mesh, crease_method)
 
     check_uniform_catmark(mesh)
     k = _catmark_decay(mesh)
@@ -86,7 +90,7 @@ def catmark_limit_masks(mesh: ControlMesh, rules: str = "opensubdiv", crease_met
     return LimitMasks(sub.position[ids].tocsr(), label0, rv0, sub, index)
 
 
-def limit_masks(mesh: ControlMesh, scheme: str, rules: str = "opensubdiv", crease_method: str = "uniform",
+def limit_masks(mesh: ControlMesh, scheme: str, rules: str = "opensubdiv", crease_method: str | None = None,
                 refine: str = "local") -> LimitMasks:
     """Limit masks (points, per-region normals) of ``mesh`` under ``scheme``; refine "local"
     (default) or "global" (``patching.loop.limit.loop_limit_masks``)."""

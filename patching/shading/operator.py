@@ -83,7 +83,7 @@ class SubdividedMesh:
     blend: np.ndarray | None = None
 
 
-def _step(mesh: ControlMesh, scheme: str, rules: str, crease_method: str):
+def _step(mesh: ControlMesh, scheme: str, rules: str, crease_method: str | None):
     """(S, child, parent face of every child corner)."""
     topo = topology_of(mesh)
     if scheme == "loop":
@@ -272,10 +272,11 @@ class ShadingOperator:
 
 def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", normals: str = "shading",
                      variant: str = "b", power: float = 1.0, rules: str = "opensubdiv",
-                     crease_method: str = "uniform", blend_level: int = 1, darts: str = "smooth") -> ShadingOperator:
+                     crease_method: str | None = None, blend_level: int = 1, darts: str = "smooth") -> ShadingOperator:
     """Build the refined mesh's operators (module docstring).  levels >= 1 for normals;
     scheme "loop" or "catmark"; normals "none", "limit" or "shading"; variant "a" or "b";
-    power p of [ZBK] eq. (1); rules and crease_method as ``patching.subdivision`` (catmark);
+    power p of [ZBK] eq. (1); rules and crease_method as ``patching.subdivision`` (catmark;
+    crease_method None, the default: the mesh's ``crease_method``, for Loop too);
     blend_level: the level whose extraordinary vertices seed b (1, [ZBK] sec. 2.3's default;
     [ZBK] sec. 5 counts the vertices that need N_S with blending started at level 4); darts
     "smooth" (default) or "sharp" (module docstring)."""
@@ -362,6 +363,6 @@ def shading_operator(mesh: ControlMesh, levels: int, scheme: str = "loop", norma
 
 def subdivide_with_normals(mesh: ControlMesh, levels: int, scheme: str = "loop", normals: str = "shading",
                            variant: str = "b", power: float = 1.0, rules: str = "opensubdiv",
-                           crease_method: str = "uniform") -> SubdividedMesh:
+                           crease_method: str | None = None) -> SubdividedMesh:
     """The refined mesh and its normals as arrays (``shading_operator(...).evaluate``)."""
     return shading_operator(mesh, levels, scheme, normals, variant, power, rules, crease_method).evaluate(mesh.vertices)

@@ -148,7 +148,7 @@ from patching.rules.catmark import (
     curve_vertex_weights,
     tagged_rules_batch,
 )
-from patching.rules.crease import CREASE_METHODS, decrement
+from patching.rules.crease import CREASE_METHODS, crease_method_of, decrement
 from patching.subdivision.child_mesh import _child_mesh
 from patching.subdivision.context import _Context, _Level
 from patching.subdivision.quad_rows import quad_operator
@@ -521,7 +521,7 @@ def _refuse_tagged_on_zero(ctx: _Context, v: int, kind: int, spoke_edges: np.nda
 # The operator
 
 
-def _check_options(rules: str, angles: str, crease_method: str = "uniform") -> None:
+def _check_options(rules: str, angles: str, crease_method: str = "uniform", where: str | None = None) -> None:
     if rules not in RULE_SETS:
         raise UnsupportedError(f"unknown subdivision rules '{rules}' (choose {' or '.join(RULE_SETS)})")
     if angles not in ANGLE_CHOICES:
@@ -533,7 +533,8 @@ def _check_options(rules: str, angles: str, crease_method: str = "uniform") -> N
     if crease_method == "chaikin" and rules != "opensubdiv":
         raise UnsupportedError(
             "chaikin creasing is an option of OpenSubdiv's rules (use rules opensubdiv); seed "
-            "000 decrements sharpness uniformly"
+            "000 decrements sharpness uniformly",
+            where or "",
         )
 
 
@@ -777,7 +778,7 @@ def _refuse_semi_sharp_on_zero(ctx: _Context) -> None:
 
 
 def subdivision_operator(
-    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str | None = None
 ) -> tuple[sp.csr_matrix, ControlMesh]:
     """One subdivision step: (S, refined mesh).
 
@@ -791,14 +792,25 @@ def subdivision_operator(
     (default: sharpness drops by 1) or "chaikin" (OpenSubdiv's ``CREASE_CHAIKIN``, with
     ``rules="opensubdiv"`` only: the two halves of a semi-sharp edge get ``3/4 s + 1/4 (mean
     of the other semi-sharp edges at that end) - 1``, see ``patching.rules.crease``; the
-    refined mesh's crease tags carry each half's value).  The mesh's ``triangle_subdivision``
+    refined mesh's crease tags carry each half's value); None (default): the mesh's
+    ``crease_method`` (its OBJ tag ``t creasemethod``, else "uniform"); the refined mesh
+    carries the method used.  The mesh's ``triangle_subdivision``
     ("smooth": [OSD]'s ``TRI_SUB_SMOOTH``, module docstring) is a rule of "opensubdiv"; the
     other rule sets refuse it on a mesh with triangles (UnsupportedError).
     Raises KnotError for non-uniform intervals under "opensubdiv", UnsupportedError for the
     configurations listed in the module docstring, MeshError for non-manifold input.
     """
-    _check_options(rules, angles, crease_method)
+    crease_method = _resolve(mesh, rules, angles, crease_method)
     return _step(mesh, rules, angles, crease_method, canonical=True)
+
+
+def _resolve(mesh: ControlMesh, rules: str, angles: str, crease_method: str | None) -> str:
+    """The crease method to use (``crease_method_of``), options checked; a chaikin taken from
+    the mesh and refused by ``rules`` names the tag's line."""
+    where = mesh.locations.get(("tag", "creasemethod"), "crease_method") if crease_method is None else None
+    crease_method = crease_method_of(mesh, crease_method)
+    _check_options(rules, angles, crease_method, where)
+    return crease_method
 
 
 def _step(mesh: ControlMesh, rules: str, angles: str, crease_method: str, canonical: bool) -> tuple[sp.csr_matrix, ControlMesh]:
@@ -814,11 +826,11 @@ MAX_SUBDIVIDE_FACES = 4_000_000
 
 
 def subdivide(
-    mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+    mesh: ControlMesh, steps: int = 1, rules: str = "seed", angles: str = "standard", crease_method: str | None = None
 ) -> ControlMesh:
     """``steps`` subdivision steps; the refined control mesh with its tags (options as
     :func:`subdivision_operator`)."""
-    _check_options(rules, angles, crease_method)
+    crease_method = _resolve(mesh, rules, angles, crease_method)
     if steps < 0:
         raise UnsupportedError(f"number of subdivision steps must be >= 0, got {steps}")
     # The first step turns every n-gon into n quads, each later step a quad into four.

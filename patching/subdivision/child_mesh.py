@@ -49,6 +49,7 @@ def _child_mesh(ctx: _Context, points: np.ndarray) -> ControlMesh:
         interpolate_boundary=ctx.mesh.interpolate_boundary,
         name=ctx.mesh.name,
         triangle_subdivision=ctx.mesh.triangle_subdivision,
+        crease_method=ctx.crease_method,
     )
     # One interval per child strip (docs/knots.md: a value on one edge applies to its strip),
     # on the strip's first edge in the order (halves at edges[:, 0], halves at edges[:, 1],

@@ -19,7 +19,7 @@ from patching.rules.catmark import (
     curve_limit_weights,
 )
 
-from patching.subdivision.catmark import _check_options, _operator
+from patching.subdivision.catmark import _operator, _resolve
 from patching.subdivision.child_mesh import _child_mesh
 from patching.subdivision.context import _Context
 from patching.util.sparse_rows import TripletRows
@@ -176,7 +176,7 @@ def _ring_block(ctx: _Context, v: int, ring: np.ndarray, rules: str, angles: str
 
 
 def limit_operator(
-    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str | None = None
 ) -> sp.csr_matrix:
     """L: (n_vertices, n_vertices) CSR, ``L @ P`` = the limit-surface point of every vertex.
 
@@ -189,7 +189,7 @@ def limit_operator(
     of valence != 4 (BLZ-modified edges) the left eigenvector of S's own 1-ring block.
     Isolated vertices: themselves.
     """
-    _check_options(rules, angles, crease_method)
+    crease_method = _resolve(mesh, rules, angles, crease_method)
     level, total, ids = _refine_for_limit(mesh, rules, angles, crease_method)
     ctx = _Context(level)
     used = ctx.topo.vertex_is_used[ids]
@@ -204,14 +204,14 @@ def limit_operator(
 
 
 def limit_points(
-    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str | None = None
 ) -> np.ndarray:
     """(n_vertices, 3) limit-surface position of every control vertex (``limit_operator``)."""
     return limit_operator(mesh, rules, angles, crease_method) @ mesh.vertices
 
 
 def limit_tangents(
-    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str = "uniform"
+    mesh: ControlMesh, rules: str = "seed", angles: str = "standard", crease_method: str | None = None
 ) -> np.ndarray:
     """(n_vertices, 2, 3) two tangent vectors of the limit surface at every vertex; NaN where the
     surface has no single tangent plane or this version does not compute it (corners; the
@@ -225,7 +225,7 @@ def limit_tangents(
     Catmull-Clark's eigenvectors for uniform intervals).  Crease: the derivative along the
     crease curve, from its first crease edge to its second.
     """
-    _check_options(rules, angles, crease_method)
+    crease_method = _resolve(mesh, rules, angles, crease_method)
     level, total, ids = _refine_for_limit(mesh, rules, angles, crease_method)
     ctx = _Context(level)
     used = ctx.topo.vertex_is_used[ids]
