@@ -62,7 +62,7 @@ from patching.mesh import NupatchWarning
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
-    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "make_vertices", "make_edges", "side_point", "piece_lists", "patch_wire", "checked_patches",
+    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "make_vertices", "make_edges", "make_edge", "edge_curves", "side_point", "piece_lists", "patch_wire", "checked_patches",
     "no_volume_components", "warn_no_volume", "refuse_round_off", "shape_face_rows",
 ]
 
@@ -437,11 +437,10 @@ def make_vertices(builder: BRep_Builder, topo, nets, tol: float) -> list[TopoDS_
     return vertices
 
 
-def make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol: float, used=None) -> list[TopoDS_Edge | None]:
-    """One ``TopoDS_Edge`` per edge id, made in order of first use: the 3D curve and
-    direction of its source piece (its first whole-side piece, else its first piece,
-    ``PatchTopology``), between the piece's vertices.  used: optional (n_edges,) bool, the
-    edges to make (None in the list for the others, e.g. edges inside a packed face)."""
+def edge_curves(pieces, n_edges: int, nets, used=None) -> dict[int, tuple[np.ndarray, int, int]]:
+    """{edge id: (curve row (d+1, 3), start vertex, end vertex)} in order of first use: the
+    3D curve and direction of each edge's source piece (its first whole-side piece, else its
+    first piece, ``PatchTopology``).  used: optional (n_edges,) bool, the edges wanted."""
     m = pieces.edge.size
     order = np.arange(m, dtype=np.int64)
     first = np.full(n_edges, m, dtype=np.int64)
@@ -451,10 +450,10 @@ def make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol:
     source = np.full(n_edges, 2 * m, dtype=np.int64)
     np.minimum.at(source, pieces.edge, np.where(pieces.whole, order, m + order))
     source = np.where(source >= m, source - m, source)
-    edges: list[TopoDS_Edge | None] = [None] * n_edges
     side, whole, ranges, vertex, reversed_ = (
         a.tolist() for a in (pieces.side, pieces.whole, pieces.range, pieces.vertex, pieces.reversed)
     )
+    out = {}
     for eid in np.argsort(first, kind="stable").tolist():
         if used is not None and not used[eid]:
             continue
@@ -466,11 +465,25 @@ def make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol:
         v0, v1 = vertex[i]
         if reversed_[i]:  # the contract makes the source piece forward; follow it regardless
             curve_row, v0, v1 = curve_row[::-1], v1, v0
-        e = TopoDS_Edge()
-        builder.MakeEdge(e, bezier_curve(curve_row), tol)
-        builder.Add(e, vertices[v0].Oriented(TopAbs_FORWARD))
-        builder.Add(e, vertices[v1].Oriented(TopAbs_REVERSED))
-        edges[eid] = e
+        out[eid] = (curve_row, v0, v1)
+    return out
+
+
+def make_edge(builder: BRep_Builder, curve, v0: TopoDS_Vertex, v1: TopoDS_Vertex, tol: float) -> TopoDS_Edge:
+    """A ``TopoDS_Edge`` on the 3D curve ``curve`` from vertex v0 to v1."""
+    e = TopoDS_Edge()
+    builder.MakeEdge(e, curve, tol)
+    builder.Add(e, v0.Oriented(TopAbs_FORWARD))
+    builder.Add(e, v1.Oriented(TopAbs_REVERSED))
+    return e
+
+
+def make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol: float) -> list[TopoDS_Edge]:
+    """One ``TopoDS_Edge`` per edge id (``edge_curves``), a Bézier curve between the shared
+    vertices."""
+    edges: list[TopoDS_Edge | None] = [None] * n_edges
+    for eid, (curve_row, v0, v1) in edge_curves(pieces, n_edges, nets).items():
+        edges[eid] = make_edge(builder, bezier_curve(curve_row), vertices[v0], vertices[v1], tol)
     return edges
 
 

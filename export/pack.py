@@ -32,28 +32,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from .ocp_compat import TColgp_Array2OfPnt
+from .ocp_compat import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
 from .ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.BRep import BRep_Builder
-from OCP.Geom import Geom_BSplineSurface
-from OCP.gp import gp_Pnt
+from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface
+from OCP.Geom2d import Geom2d_BSplineCurve
+from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from patching.bernstein import evaluate_nets
 from patching.surface import BezierSurface
 
-from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, find_blocks
+from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, edge_chains, find_blocks
 
 from export.brep import (
     BrepError,
     bezier_surface,
     line_2d,
-    patch_wire,
     piece_lists,
     side_point,
     assemble,
     bound_face_pieces,
-    make_edges,
+    bezier_curve,
+    edge_curves,
+    make_edge,
     make_vertices,
     checked_patches,
     patch_components,
@@ -158,34 +160,60 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     used = np.zeros(topo.n_edges, dtype=bool)
     used[pieces.edge[on_boundary[pieces.side]]] = True
     vertices = make_vertices(builder, topo, nets, tol)
-    edges = make_edges(builder, pieces, topo.n_edges, nets, vertices, tol, used)
+    curves = edge_curves(pieces, topo.n_edges, nets, used)
 
-    lists = piece_lists(pieces)
-    indptr, edge_of, reversed_, _, ranges = lists
-    faces = []
+    # Each face's wire: (edge, reversed, pcurve start, pcurve end), the pcurve a segment in
+    # the face's (u, v) in the edge's own direction.
+    indptr, edge_of, reversed_, _, ranges = piece_lists(pieces)
+    surfaces, wires = [], []
     for plan in faces_plan:
-        f = TopoDS_Face()
         wire = []
         if plan[0] == "patch":
             row = plan[1]
-            builder.MakeFace(f, bezier_surface(nets[row]), tol)
-            wire = patch_wire(lists, row)
+            surfaces.append(bezier_surface(nets[row]))
+            cells = [(row, k, np.zeros(2), np.ones(2), k) for k in range(4)]
         else:
             _, block, bspline, u, v = plan
-            builder.MakeFace(f, bspline, tol)
-            for r, t, k, (i, j) in block_boundary(block, with_cell=True):
-                # Side k of cell (i, j) in the block's (u, v); the patch's own side (k + t) mod 4
-                # runs the same way (a turn keeps the orientation), so its pieces' u0, u1 map
-                # linearly onto it: the B-spline on that span is the patch, SameParameter holds.
-                origin = np.array([u[i], v[j]])
-                scale = np.array([block.du[i], block.dv[j]])
-                original = 4 * r + (k + t) % 4
-                for piece in range(indptr[original], indptr[original + 1]):
-                    u0, u1 = ranges[piece][::-1] if reversed_[piece] else ranges[piece]
-                    a = origin + scale * side_point(k, u0)
-                    b = origin + scale * side_point(k, u1)
-                    wire.append((edge_of[piece], reversed_[piece], line_2d(a, b)))
-        bound_face_pieces(builder, f, wire, edges, tol)
+            surfaces.append(bspline)
+            # Side k of cell (i, j) in the block's (u, v); the patch's own side (k + t) mod 4
+            # runs the same way (a turn keeps the orientation), so its pieces' u0, u1 map
+            # linearly onto it: the B-spline on that span is the patch, SameParameter holds.
+            cells = [(r, (k + t) % 4, np.array([u[i], v[j]]), np.array([block.du[i], block.dv[j]]), k)
+                     for r, t, k, (i, j) in block_boundary(block, with_cell=True)]
+        for r, own, origin, scale, k in cells:
+            for piece in range(indptr[4 * r + own], indptr[4 * r + own + 1]):
+                u0, u1 = ranges[piece][::-1] if reversed_[piece] else ranges[piece]
+                wire.append((edge_of[piece], reversed_[piece], origin + scale * side_point(k, u0), origin + scale * side_point(k, u1)))
+        wires.append(wire)
+
+    # Runs of edges between the same two faces become one multi-span edge (edge_chains).
+    chains = edge_chains([[(e, r) for e, r, _, _ in w] for w in wires], {e: c[1:] for e, c in curves.items()},
+                         {e: len(c[0]) - 1 for e, c in curves.items()}, _turns(wires, curves))
+    # A chain's knots: the lengths of its segments in the (u, v) of a face it bounds (the
+    # knot intervals there, in which the joins of same-level patches are C2), scaled to [0, 1].
+    length: dict[int, float] = {}
+    for w in wires:  # the first face of the pair, for every edge of the chain alike
+        for e, _, a, b in w:
+            length.setdefault(e, float(np.abs(b - a).sum()))
+    chain_of, chain_knots = {}, []
+    edges = []
+    for c, chain in enumerate(chains):
+        at = np.concatenate([[0.0], np.cumsum([length[e] for e, _ in chain])])
+        chain_knots.append(at / at[-1])
+        rows = [curves[e][0][::-1] if back else curves[e][0] for e, back in chain]
+        first, last = curves[chain[0][0]], curves[chain[-1][0]]
+        v0 = first[2] if chain[0][1] else first[1]
+        v1 = last[1] if chain[-1][1] else last[2]
+        curve = bezier_curve(rows[0]) if len(rows) == 1 else _chain_curve(rows, chain_knots[c], KNOT_TOLERANCE * float(surface.size))
+        edges.append(make_edge(builder, curve, vertices[v0], vertices[v1], tol))
+        for k, (e, back) in enumerate(chain):
+            chain_of[e] = (c, k, back)
+
+    faces = []
+    for surf, wire in zip(surfaces, wires):
+        f = TopoDS_Face()
+        builder.MakeFace(f, surf, tol)
+        bound_face_pieces(builder, f, _chained_wire(wire, chain_of, chains, chain_knots), edges, tol)
         faces.append(f)
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
@@ -203,6 +231,96 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
             raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")
     blocks = tuple((p[1], p[3], p[4]) for p in faces_plan if p[0] == "block")
     return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)
+
+
+def _turns(wires, curves) -> set[int]:
+    """Vertices where a face's wire turns: the segments of two consecutive wire entries (in
+    the face's (u, v)) are not parallel there."""
+    out = set()
+    for wire in wires:
+        for (e, rev, a, b), (_, rev2, a2, b2) in zip(wire, wire[1:] + wire[:1]):
+            d1 = a - b if rev else b - a
+            d2 = a2 - b2 if rev2 else b2 - a2
+            if abs(d1[0] * d2[1] - d1[1] * d2[0]) > 1e-9 * np.linalg.norm(d1) * np.linalg.norm(d2):
+                out.add(curves[e][1] if rev else curves[e][2])  # the vertex the entry ends at
+    return out
+
+
+def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float) -> Geom_BSplineCurve:
+    """The Bézier rows (each (d+1, 3), end to start) as one B-spline curve on [0, 1], row k on
+    [knots_at[k], knots_at[k+1]] (interior knots of multiplicity d: exactly the rows), then each
+    interior knot removed where the join is C2 (C1) to within ``tol``.  OpenCASCADE's removal
+    is checked: the curve is compared with the rows at 5 parameters of each, and where it is
+    off by more than ``tol`` the knots all stay (measured: a chain parametrised uniformly
+    across unequal knot intervals lost its knots with 1e-2 of error)."""
+    d, n = len(rows[0]) - 1, len(rows)
+    points = np.concatenate([rows[0]] + [r[1:] for r in rows[1:]])
+
+    def make() -> Geom_BSplineCurve:
+        poles = TColgp_Array1OfPnt(1, len(points))
+        for i, (x, y, z) in enumerate(points.tolist()):
+            poles.SetValue(i + 1, gp_Pnt(x, y, z))
+        knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
+        for i in range(n + 1):
+            knots.SetValue(i + 1, float(knots_at[i]))
+            mults.SetValue(i + 1, d + 1 if i in (0, n) else d)
+        return Geom_BSplineCurve(poles, knots, mults, d)
+
+    curve = make()
+    for i in range(n, 1, -1):
+        curve.RemoveKnot(i, 1, tol) or curve.RemoveKnot(i, 2, tol)
+    if curve.NbKnots() < n + 1:
+        t = np.linspace(0.0, 1.0, 5)
+        expected = evaluate_nets(np.stack([np.stack([r] * (d + 1), axis=1) for r in rows]), t, np.zeros(5))
+        lo, hi = knots_at[:-1, None], knots_at[1:, None]
+        got = np.array([curve.Value(float(w)).Coord() for w in (lo + t[None, :] * (hi - lo)).ravel().tolist()])
+        if np.linalg.norm(got - expected.reshape(-1, 3), axis=1).max() > tol:
+            curve = make()
+    return curve
+
+
+def _polyline_2d(points: list[np.ndarray], knots_at: np.ndarray) -> Geom2d_BSplineCurve:
+    """Degree-1 pcurve through ``points``, segment k on [knots_at[k], knots_at[k+1]] (the
+    knots of ``_chain_curve``, which knot removal does not move)."""
+    n = len(points) - 1
+    poles = TColgp_Array1OfPnt2d(1, n + 1)
+    knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
+    for i, (x, y) in enumerate(np.asarray(points, dtype=np.float64).tolist()):
+        poles.SetValue(i + 1, gp_Pnt2d(x, y))
+        knots.SetValue(i + 1, float(knots_at[i]))
+        mults.SetValue(i + 1, 2 if i in (0, n) else 1)
+    return Geom2d_BSplineCurve(poles, knots, mults, 1)
+
+
+def _chained_wire(wire, chain_of: dict, chains, chain_knots) -> list:
+    """A face's wire of (edge, reversed, a, b) as (chain edge, reversed, pcurve): each run of
+    one chain's edges (consecutive, perhaps around the wire's start) one entry, its pcurve the
+    polyline of the run's segments in the chain's direction."""
+    keys = [chain_of[e][0] for e, _, _, _ in wire]
+    start = next((i for i in range(len(wire)) if keys[i] != keys[i - 1]), 0)
+    wire, keys = wire[start:] + wire[:start], keys[start:] + keys[:start]
+    out, i = [], 0
+    while i < len(wire):
+        c = keys[i]
+        j = i
+        while j < len(wire) and keys[j] == c:
+            j += 1
+        segment = {e: (a, b) for e, _, a, b in wire[i:j]}
+        chain = chains[c]
+        e0, rev0 = wire[i][0], wire[i][1]
+        agree = rev0 == chain_of[e0][2]  # the face runs along the chain
+        if len(chain) == 1:  # each use on its own (a seam uses its edge twice, both ways)
+            out += [(c, rev, line_2d(a, b)) for _, rev, a, b in wire[i:j]]
+        else:
+            points = []
+            for e, back in chain:
+                a, b = segment[e]
+                a, b = (b, a) if back else (a, b)
+                points = points or [a]
+                points.append(b)
+            out.append((c, not agree, _polyline_2d(points, chain_knots[c])))
+        i = j
+    return out
 
 
 def _signed_volumes(surface: BezierSurface) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 
 from patching.surface import BezierSurface
 
-__all__ = ["Block", "MAX_SIDE", "block_neighbours", "find_blocks", "block_poles", "block_boundary"]
+__all__ = ["Block", "MAX_SIDE", "block_neighbours", "find_blocks", "block_poles", "block_boundary", "edge_chains"]
 
 #: Blocks have at most this many patches a side (keeps each face's pole grid moderate).
 MAX_SIDE = 128
@@ -190,3 +190,69 @@ def block_boundary(block: Block, with_cell: bool = False):
     for i, j, k in cells:
         item = (int(block.rows[i, j]), int(block.turns[i, j]), k)
         yield item + ((i, j),) if with_cell else item
+
+
+def edge_chains(wires, ends: dict, degree: dict, corners=frozenset()) -> list[list[tuple[int, bool]]]:
+    """Runs of B-rep edges that can be one edge: consecutive edges between the same two
+    faces (or one face and the open boundary) whose shared vertex no other edge uses, and
+    whose curves have one degree.  Along a packed block's side every patch side is an edge,
+    and at a T-junction every fine side: joined, a level transition between two faces is one
+    multi-span edge (the STEP file then holds one curve and two pcurves, not one per side).
+
+    wires: per face, its wire as a list of (edge id, reversed).  ends: {edge id: (start
+    vertex, end vertex)} in the edge's own direction.  degree: {edge id: curve degree}.
+    corners: vertices where some face's boundary turns (kept: a face's wire turns there, and
+    OpenCASCADE's check rejects a face whose edge has a kink, BRepCheck_UnorientableShape).
+    Returns every edge of the wires once, as chains [(edge id, backward), ...] in chain order
+    (backward: the chain runs against the edge's own direction); a closed loop of such edges
+    is cut in two, so that every chain runs between two kept vertices."""
+    faces_of: dict[int, list[int]] = {}
+    for f, wire in enumerate(wires):
+        for eid, _ in wire:
+            faces_of.setdefault(eid, []).append(f)
+    pair = {}
+    for eid, fs in faces_of.items():
+        fs = sorted(fs) + [-1] * (2 - len(fs))
+        pair[eid] = tuple(fs) if len(fs) == 2 and fs[0] != fs[1] else None  # None: a seam, never joined
+    incident: dict[int, list[int]] = {}
+    for eid in faces_of:
+        for v in ends[eid]:
+            incident.setdefault(v, []).append(eid)
+
+    def joinable(v: int) -> bool:
+        es = incident[v]
+        return (v not in corners and len(es) == 2 and es[0] != es[1] and pair[es[0]] is not None and pair[es[0]] == pair[es[1]]
+                and degree[es[0]] == degree[es[1]])
+
+    keep = {v: not joinable(v) for v in incident}
+    seen: set[int] = set()
+    chains = []
+
+    def walk(eid: int, v: int) -> list[tuple[int, bool]]:
+        chain = []
+        while True:
+            v0, v1 = ends[eid]
+            backward = v == v1 and v != v0
+            chain.append((eid, backward))
+            seen.add(eid)
+            v = v0 if backward else v1
+            if keep[v]:
+                return chain
+            a, b = incident[v]
+            eid = b if a == eid else a
+            if eid in seen:
+                return chain
+
+    for eid in faces_of:  # paths: from an edge end that is kept
+        if eid in seen:
+            continue
+        v0, v1 = ends[eid]
+        if keep[v0] or keep[v1]:
+            chains.append(walk(eid, v0 if keep[v0] else v1))
+    for eid in faces_of:  # what is left are closed loops: cut each in two
+        if eid in seen:
+            continue
+        loop = walk(eid, ends[eid][0])
+        half = max(1, len(loop) // 2)
+        chains += [c for c in (loop[:half], loop[half:]) if c]
+    return chains
