@@ -411,13 +411,16 @@ def _sub_row(row: np.ndarray, u0: float, u1: float) -> np.ndarray:
     return row
 
 
-def make_vertices(builder: BRep_Builder, topo, nets, tol: float) -> list[TopoDS_Vertex]:
+def make_vertices(builder: BRep_Builder, topo, nets, tol: float, used=None) -> list[TopoDS_Vertex]:
     """One ``TopoDS_Vertex`` per vertex id: the corner coefficient of the first patch corner
     using it, then T-vertices that are no patch's corner at their point on the side they split
-    (de Casteljau of the side row)."""
+    (de Casteljau of the side row).  used: optional (n_vertices,) bool, the vertices wanted
+    (None in the list for the others, e.g. inside a packed face)."""
     corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
     pieces = topo.pieces
     vertices: list[TopoDS_Vertex | None] = [None] * topo.n_vertices
+    if used is not None:
+        vertices = [None if u else False for u in np.asarray(used, dtype=bool).tolist()]  # False: not wanted
 
     def make_vertex(vid: int, point) -> None:
         v = TopoDS_Vertex()
@@ -434,7 +437,7 @@ def make_vertices(builder: BRep_Builder, topo, nets, tol: float) -> list[TopoDS_
     for i in [i for i, v in enumerate(pieces.vertex[:, 0].tolist()) if vertices[v] is None]:
         row, k = divmod(int(pieces.side[i]), 4)
         make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
-    return vertices
+    return [v if v is not False else None for v in vertices]
 
 
 def edge_curves(pieces, n_edges: int, nets, used=None) -> dict[int, tuple[np.ndarray, int, int]]:

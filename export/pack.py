@@ -41,7 +41,7 @@ from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from patching.bernstein import evaluate_nets
-from patching.surface import BezierSurface
+from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, edge_chains, find_blocks
 
@@ -50,7 +50,6 @@ from export.brep import (
     bezier_surface,
     line_2d,
     piece_lists,
-    side_point,
     assemble,
     bound_face_pieces,
     bezier_curve,
@@ -79,9 +78,9 @@ def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
     w, h = block.rows.shape
     turned, grid = block_poles(block, nets)
     poles = TColgp_Array2OfPnt(1, 3 * w + 1, 1, 3 * h + 1)
-    for a, b in np.ndindex(3 * w + 1, 3 * h + 1):
-        x, y, z = grid[a, b].tolist()
-        poles.SetValue(a + 1, b + 1, gp_Pnt(x, y, z))
+    for a, line in enumerate(grid.tolist()):
+        for b, (x, y, z) in enumerate(line):
+            poles.SetValue(a + 1, b + 1, gp_Pnt(x, y, z))
     u, v = block.knots
 
     def knots(values):
@@ -181,31 +180,38 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
             on_boundary[[4 * r + (k + t) % 4 for r, t, k in block_boundary(plan[1])]] = True
     used = np.zeros(topo.n_edges, dtype=bool)
     used[pieces.edge[on_boundary[pieces.side]]] = True
-    vertices = make_vertices(builder, topo, nets, tol)
     curves = edge_curves(pieces, topo.n_edges, nets, used)
+    used_vertices = np.zeros(topo.n_vertices, dtype=bool)
+    used_vertices[[v for _, v0, v1 in curves.values() for v in (v0, v1)]] = True
+    vertices = make_vertices(builder, topo, nets, tol, used_vertices)
 
     # Each face's wire: (edge, reversed, pcurve start, pcurve end), the pcurve a segment in
     # the face's (u, v) in the edge's own direction.
     indptr, edge_of, reversed_, _, ranges = piece_lists(pieces)
+    corners = CORNER_PARAMETERS.tolist()
     surfaces, wires = [], []
     for plan in faces_plan:
         wire = []
         if plan[0] == "patch":
             row = plan[1]
             surfaces.append(bezier_surface(nets[row]))
-            cells = [(row, k, np.zeros(2), np.ones(2), k) for k in range(4)]
+            cells = [(row, k, (0.0, 0.0), (1.0, 1.0), k) for k in range(4)]
         else:
             _, block, bspline, u, v = plan
             surfaces.append(bspline)
             # Side k of cell (i, j) in the block's (u, v); the patch's own side (k + t) mod 4
             # runs the same way (a turn keeps the orientation), so its pieces' u0, u1 map
             # linearly onto it: the B-spline on that span is the patch, SameParameter holds.
-            cells = [(r, (k + t) % 4, np.array([u[i], v[j]]), np.array([block.du[i], block.dv[j]]), k)
-                     for r, t, k, (i, j) in block_boundary(block, with_cell=True)]
-        for r, own, origin, scale, k in cells:
+            u_, v_, du, dv = u.tolist(), v.tolist(), block.du.tolist(), block.dv.tolist()
+            cells = [(r, (k + t) % 4, (u_[i], v_[j]), (du[i], dv[j]), k) for r, t, k, (i, j) in block_boundary(block, with_cell=True)]
+        for r, own, (ou, ov), (su, sv), k in cells:
+            (a0, a1), (b0, b1) = corners[k], corners[(k + 1) % 4]
             for piece in range(indptr[4 * r + own], indptr[4 * r + own + 1]):
                 u0, u1 = ranges[piece][::-1] if reversed_[piece] else ranges[piece]
-                wire.append((edge_of[piece], reversed_[piece], origin + scale * side_point(k, u0), origin + scale * side_point(k, u1)))
+                # side_point(k, w) = C_k + w (C_{k+1} - C_k), in plain floats (170k pieces on the pawn)
+                a = np.array([ou + su * (a0 + u0 * (b0 - a0)), ov + sv * (a1 + u0 * (b1 - a1))])
+                b = np.array([ou + su * (a0 + u1 * (b0 - a0)), ov + sv * (a1 + u1 * (b1 - a1))])
+                wire.append((edge_of[piece], reversed_[piece], a, b))
         wires.append(wire)
 
     # Runs of edges between the same two faces become one multi-span edge (edge_chains).
@@ -216,7 +222,8 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     length: dict[int, float] = {}
     for w in wires:  # the first face of the pair, for every edge of the chain alike
         for e, _, a, b in w:
-            length.setdefault(e, float(np.abs(b - a).sum()))
+            if e not in length:
+                length[e] = abs(b[0] - a[0]) + abs(b[1] - a[1])
     chain_of, chain_knots = {}, []
     edges = []
     for c, chain in enumerate(chains):
