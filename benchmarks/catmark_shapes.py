@@ -1,5 +1,5 @@
 """Every ``catmark_*`` shape of the OpenSubdiv shapes folder built to STEP by ``nupatch build``
-as a whole process: control-mesh faces, B-rep faces (one a patch, or fewer where packed), seconds (wall and CPU) and megabytes, one row a shape,
+as a whole process: control-mesh faces, patches, B-rep faces (one a patch, or fewer where packed), seconds (wall and CPU) and megabytes, one row a shape,
 against the targets (<= 30 s each; no STEP of a mesh under 1,000 faces above 5 MB).  With
 ``--before DIR`` a second checkout builds each shape right after, in the same run.  A shape that
 takes longer than ``--timeout`` seconds is stopped and reported as such.  Run by hand:
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -21,21 +22,23 @@ ROOT = Path(__file__).resolve().parent.parent
 SHAPES = ROOT.parent / "shared" / "opensubdiv-shapes"
 
 
-def build(tree: str, mesh: Path, out: Path, timeout: float) -> tuple[str, float, float]:
-    """(status, wall, cpu) of ``nupatch build mesh -o out`` run from ``tree``."""
+def build(tree: str, mesh: Path, out: Path, timeout: float) -> tuple[str, float, float, int]:
+    """(status, wall, cpu, patches) of ``nupatch build mesh -o out`` run from ``tree``."""
     env = dict(os.environ, PYTHONPATH=tree)
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     try:
-        proc = subprocess.run([sys.executable, "-m", "export.cli", "build", str(mesh), "-o", str(out), "-q"],
+        proc = subprocess.run([sys.executable, "-m", "export.cli", "build", str(mesh), "-o", str(out)],
                               env=env, capture_output=True, text=True, timeout=timeout, cwd=out.parent)  # not a checkout: -m puts cwd first on sys.path
         status = "ok" if proc.returncode == 0 else (proc.stderr.strip().splitlines() or ["failed"])[-1][:60]
+        found = re.search(r"nupatch: (\d+) patches from", proc.stderr)
+        patches = int(found.group(1)) if found else 0
     except subprocess.TimeoutExpired:
-        status = f"> {timeout:g} s"
+        status, patches = f"> {timeout:g} s", 0
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return status, wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return status, wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), patches
 
 
 def main() -> None:
@@ -51,18 +54,23 @@ def main() -> None:
     sides = {"now": str(ROOT)}
     if args.before:
         sides["before"] = str(Path(args.before).resolve())
-    print(f"{'shape':28s} {'faces':>6s} {'side':>6s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}  status")
+    print(f"load {os.getloadavg()[0]:.1f} at the start (2 cores)")
+    print(f"{'shape':28s} {'faces':>6s} {'side':>6s} {'patches':>8s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}  status")
     with tempfile.TemporaryDirectory() as tmp:
         for path in paths:
-            faces = patching.read_mesh(path).n_faces
+            try:
+                faces = patching.read_mesh(path).n_faces
+            except patching.NupatchError:  # refused input: count the OBJ's faces
+                faces = sum(line.startswith("f ") for line in path.read_text().splitlines())
             for side, tree in sides.items():
                 out = Path(tmp) / f"{side}.step"
                 out.unlink(missing_ok=True)
-                status, wall, cpu = build(tree, path, out, args.timeout)
+                status, wall, cpu, n_patches = build(tree, path, out, args.timeout)
                 size = out.stat().st_size / 1e6 if out.exists() else float("nan")
                 patches = out.read_text(errors="replace").count("ADVANCED_FACE(") if out.exists() else 0
                 flag = " (over 5 MB)" if faces < 1000 and size > 5 else ""
-                print(f"{path.stem:28s} {faces:6d} {side:>6s} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}  {status}{flag}", flush=True)
+                print(f"{path.stem:28s} {faces:6d} {side:>6s} {n_patches:8d} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}  {status}{flag}", flush=True)
+    print(f"load {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":

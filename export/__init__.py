@@ -22,7 +22,7 @@ from patching.surface import BezierSurface
 __all__ = ["build_file", "to_shape", "to_step", "to_build123d", "to_cadquery", "write", "write_obj", "write_step", "read_step", "check_continuity"]
 
 
-def build_file(mesh, out=None, format: str | None = None, *, options: BuildOptions | None = None, pack: bool = False,
+def build_file(mesh, out=None, format: str | None = None, *, options: BuildOptions | None = None, pack: bool | None = None,
                tolerance: float | None = None) -> Path:
     """Build the mesh file ``mesh`` and write ``out`` (``export.pipeline.build_file``)."""
     from export.pipeline import build_file as _build_file

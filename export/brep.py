@@ -62,7 +62,7 @@ from patching.mesh import NupatchWarning
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
-    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "checked_patches",
+    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "make_vertices", "make_edges", "make_edge", "edge_curves", "side_point", "piece_lists", "patch_wire", "checked_patches",
     "no_volume_components", "warn_no_volume", "refuse_round_off", "shape_face_rows",
 ]
 
@@ -210,51 +210,20 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     topo = surface.topology
     tol = shape_tolerance(surface)
     builder = BRep_Builder()
-    corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
     pieces = topo.pieces
     nets = [net for _row, _degree, _face, net in patches]
 
-    # Vertices: the corner coefficient of the first patch corner using each id, then
-    # T-vertices that are no patch's corner on the side they split.
-    vertices: list[TopoDS_Vertex | None] = [None] * topo.n_vertices
-
-    def make_vertex(vid: int, point) -> None:
-        v = TopoDS_Vertex()
-        builder.MakeVertex(v, gp_Pnt(*(float(c) for c in point)), tol)
-        vertices[vid] = v
-
-    for row, net in enumerate(nets):
-        d = net.shape[0] - 1
-        corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
-        for c in range(4):
-            vid = corner_vertex[row, c]
-            if vertices[vid] is None:
-                make_vertex(vid, corners[c])
-    for i in [i for i, v in enumerate(pieces.vertex[:, 0].tolist()) if vertices[v] is None]:
-        row, k = divmod(int(pieces.side[i]), 4)
-        make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
-
+    vertices = make_vertices(builder, topo, nets, tol)
     # Edges: 3D curve from each edge's source piece (PatchTopology), between the shared vertices.
-    edges = _make_edges(builder, pieces, topo.n_edges, nets, vertices, tol)
+    edges = make_edges(builder, pieces, topo.n_edges, nets, vertices, tol)
 
     # Faces: surface, pcurves (two on one face for a seam edge), wire of the oriented pieces.
     faces: list[TopoDS_Face] = []
-    indptr, edge_of, reversed_, whole, ranges = (
-        a.tolist() for a in (pieces.indptr, pieces.edge, pieces.reversed, pieces.whole, pieces.range)
-    )
+    lists = piece_lists(pieces)
     for row, net in enumerate(nets):
         f = TopoDS_Face()
         builder.MakeFace(f, bezier_surface(net), tol)
-        wire = []
-        for k in range(4):
-            for i in range(indptr[4 * row + k], indptr[4 * row + k + 1]):
-                if whole[i]:
-                    curve = pcurve(k, reversed_[i])
-                else:
-                    u0, u1 = ranges[i][::-1] if reversed_[i] else ranges[i]
-                    curve = line_2d(_side_point(k, u0), _side_point(k, u1))
-                wire.append((edge_of[i], reversed_[i], curve))
-        bound_face_pieces(builder, f, wire, edges, tol)
+        bound_face_pieces(builder, f, patch_wire(lists, row), edges, tol)
         faces.append(f)
 
     label, closed = patch_components(topo)
@@ -275,6 +244,29 @@ def to_shape(surface: BezierSurface, *, check: bool = True) -> TopoDS_Shape:
     if check:
         _require_valid(shape, faces, patches, surface)
     return shape
+
+
+def piece_lists(pieces) -> tuple[list, ...]:
+    """(indptr, edge, reversed, whole, range) of ``SidePieces`` as Python lists, for the
+    per-face loops of ``patch_wire``."""
+    return tuple(a.tolist() for a in (pieces.indptr, pieces.edge, pieces.reversed, pieces.whole, pieces.range))
+
+
+def patch_wire(lists, row: int) -> list[tuple[int, bool, object]]:
+    """The wire of patch ``row`` on its own Bézier face, as (edge id, reversed, pcurve) in
+    order: side by side, piece by piece; a whole side's pcurve is ``pcurve``, a piece's the
+    segment of its range (``side_point``)."""
+    indptr, edge_of, reversed_, whole, ranges = lists
+    wire = []
+    for k in range(4):
+        for i in range(indptr[4 * row + k], indptr[4 * row + k + 1]):
+            if whole[i]:
+                curve = pcurve(k, reversed_[i])
+            else:
+                u0, u1 = ranges[i][::-1] if reversed_[i] else ranges[i]
+                curve = line_2d(side_point(k, u0), side_point(k, u1))
+            wire.append((edge_of[i], reversed_[i], curve))
+    return wire
 
 
 def checked_patches(surface: BezierSurface, check: bool = True) -> list[tuple[int, int, int, np.ndarray]]:
@@ -384,7 +376,7 @@ def _refuse_degenerate_sides(surface: BezierSurface, patches, tol: float) -> Non
             )
 
 
-def _side_point(side: int, u: float) -> np.ndarray:
+def side_point(side: int, u: float) -> np.ndarray:
     """(s, t) of parameter u along ``side`` of the parameter square: C_k + u (C_{k+1} - C_k)."""
     a, b = CORNER_PARAMETERS[side], CORNER_PARAMETERS[(side + 1) % 4]
     return a + u * (b - a)
@@ -419,10 +411,39 @@ def _sub_row(row: np.ndarray, u0: float, u1: float) -> np.ndarray:
     return row
 
 
-def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol: float) -> list[TopoDS_Edge]:
-    """One ``TopoDS_Edge`` per edge id, made in order of first use: the 3D curve and
-    direction of its source piece (its first whole-side piece, else its first piece,
-    ``PatchTopology``), between the piece's vertices."""
+def make_vertices(builder: BRep_Builder, topo, nets, tol: float, used=None) -> list[TopoDS_Vertex]:
+    """One ``TopoDS_Vertex`` per vertex id: the corner coefficient of the first patch corner
+    using it, then T-vertices that are no patch's corner at their point on the side they split
+    (de Casteljau of the side row).  used: optional (n_vertices,) bool, the vertices wanted
+    (None in the list for the others, e.g. inside a packed face)."""
+    corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
+    pieces = topo.pieces
+    vertices: list[TopoDS_Vertex | None] = [None] * topo.n_vertices
+    if used is not None:
+        vertices = [None if u else False for u in np.asarray(used, dtype=bool).tolist()]  # False: not wanted
+
+    def make_vertex(vid: int, point) -> None:
+        v = TopoDS_Vertex()
+        builder.MakeVertex(v, gp_Pnt(*(float(c) for c in point)), tol)
+        vertices[vid] = v
+
+    for row, net in enumerate(nets):
+        d = net.shape[0] - 1
+        corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
+        for c in range(4):
+            vid = corner_vertex[row, c]
+            if vertices[vid] is None:
+                make_vertex(vid, corners[c])
+    for i in [i for i, v in enumerate(pieces.vertex[:, 0].tolist()) if vertices[v] is None]:
+        row, k = divmod(int(pieces.side[i]), 4)
+        make_vertex(int(pieces.vertex[i, 0]), _de_casteljau(side_row(nets[row], k), float(pieces.range[i, 0]))[0][-1])
+    return [v if v is not False else None for v in vertices]
+
+
+def edge_curves(pieces, n_edges: int, nets, used=None) -> dict[int, tuple[np.ndarray, int, int]]:
+    """{edge id: (curve row (d+1, 3), start vertex, end vertex)} in order of first use: the
+    3D curve and direction of each edge's source piece (its first whole-side piece, else its
+    first piece, ``PatchTopology``).  used: optional (n_edges,) bool, the edges wanted."""
     m = pieces.edge.size
     order = np.arange(m, dtype=np.int64)
     first = np.full(n_edges, m, dtype=np.int64)
@@ -432,11 +453,13 @@ def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol
     source = np.full(n_edges, 2 * m, dtype=np.int64)
     np.minimum.at(source, pieces.edge, np.where(pieces.whole, order, m + order))
     source = np.where(source >= m, source - m, source)
-    edges: list[TopoDS_Edge | None] = [None] * n_edges
     side, whole, ranges, vertex, reversed_ = (
         a.tolist() for a in (pieces.side, pieces.whole, pieces.range, pieces.vertex, pieces.reversed)
     )
+    out = {}
     for eid in np.argsort(first, kind="stable").tolist():
+        if used is not None and not used[eid]:
+            continue
         i = int(source[eid])
         row, k = divmod(side[i], 4)
         curve_row = side_row(nets[row], k)
@@ -445,11 +468,25 @@ def _make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol
         v0, v1 = vertex[i]
         if reversed_[i]:  # the contract makes the source piece forward; follow it regardless
             curve_row, v0, v1 = curve_row[::-1], v1, v0
-        e = TopoDS_Edge()
-        builder.MakeEdge(e, bezier_curve(curve_row), tol)
-        builder.Add(e, vertices[v0].Oriented(TopAbs_FORWARD))
-        builder.Add(e, vertices[v1].Oriented(TopAbs_REVERSED))
-        edges[eid] = e
+        out[eid] = (curve_row, v0, v1)
+    return out
+
+
+def make_edge(builder: BRep_Builder, curve, v0: TopoDS_Vertex, v1: TopoDS_Vertex, tol: float) -> TopoDS_Edge:
+    """A ``TopoDS_Edge`` on the 3D curve ``curve`` from vertex v0 to v1."""
+    e = TopoDS_Edge()
+    builder.MakeEdge(e, curve, tol)
+    builder.Add(e, v0.Oriented(TopAbs_FORWARD))
+    builder.Add(e, v1.Oriented(TopAbs_REVERSED))
+    return e
+
+
+def make_edges(builder: BRep_Builder, pieces, n_edges: int, nets, vertices, tol: float) -> list[TopoDS_Edge]:
+    """One ``TopoDS_Edge`` per edge id (``edge_curves``), a Bézier curve between the shared
+    vertices."""
+    edges: list[TopoDS_Edge | None] = [None] * n_edges
+    for eid, (curve_row, v0, v1) in edge_curves(pieces, n_edges, nets).items():
+        edges[eid] = make_edge(builder, bezier_curve(curve_row), vertices[v0], vertices[v1], tol)
     return edges
 
 
@@ -515,6 +552,8 @@ def assemble(builder: BRep_Builder, edges, faces, topo, inside_out, face_rows=No
     Every curve representation is parametrised on [0, 1] by construction (SameRange,
     SameParameter hold exactly)."""
     for e in edges:
+        if e is None:  # an edge inside a packed face: made by no one
+            continue
         builder.Range(e, 0.0, 1.0)
         builder.SameRange(e, True)
         builder.SameParameter(e, True)

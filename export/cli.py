@@ -433,8 +433,13 @@ def _parser(only: str | None = None) -> argparse.ArgumentParser:
         )
         _add_build_options(p)
         p.add_argument(
-            "--pack", action="store_true",
-            help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface)",
+            "--pack", action="store_true", default=None,
+            help="merge rectangular regions of bicubic patches into multi-span B-spline faces (step/iges/brep; the same surface), "
+            "after global refinement of semi-sharp tags (default: only what the adaptive refinement of semi-sharp tags builds is packed)",
+        )
+        p.add_argument(
+            "--no-pack", dest="pack", action="store_false",
+            help="one Bezier face per patch, also where semi-sharp tags are refined adaptively",
         )
         p.add_argument(
             "--no-cache", action="store_true",

@@ -5,12 +5,9 @@ B-spline; ``to_shape`` nevertheless makes one Bézier face per patch.  Here bloc
 patches that lie in a rectangular grid become one ``Geom_BSplineSurface`` face each, re-using
 the patches' coefficients only (no geometry rule is recomputed):
 
-1. Blocks.  From a seed patch the block grows along its s direction across side 1 while the
-   next patch is bicubic and free, then row by row across side 2 while every patch above is
-   bicubic, free and the rows stay a grid (the patch right of each one is the next one above).
-   Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the net, spans
-   swapped).  A row or column that would close the block on itself (a full ring of a torus)
-   is left out, so no packed face needs a seam.
+1. Blocks (``patching.evaluation.packing.find_blocks``): rectangular grids of bicubic patches
+   joined through whole shared sides, grown greedily; a block never closes on itself (a full
+   ring of a torus), so no packed face needs a seam, and never crosses a T-junction.
 2. Surface.  The block's nets become the poles of a bicubic B-spline with every interior knot
    of multiplicity 3 (the Bézier form: exactly the patches), knots at the cumulative knot
    intervals of the block's columns and rows (``Topology.face_spans``, the intervals
@@ -23,8 +20,9 @@ the patches' coefficients only (no geometry rule is recomputed):
    that differs by more than ``EXACTNESS`` (relative to the surface size) is not packed
    (its patches stay Bézier faces), so the surface is never changed.
 4. B-rep.  As ``export.brep.to_shape``, with shared vertices and edges: every patch side on a
-   block's boundary keeps its own edge (so neighbours, packed or not, share it), with a
-   degree-1 pcurve on the packed face from the side's start to its end in the block's (u, v):
+   block's boundary keeps its own pieces (one whole edge, or the run of edges of a side split
+   at T-junctions of the adaptive refinement), so neighbours, packed or not, share them, each
+   with a degree-1 pcurve on the packed face between the piece's ends in the block's (u, v):
    the B-spline restricted to one span is the patch reparametrised linearly, so SameParameter
    holds exactly.  Edges inside a block disappear.
 """
@@ -34,26 +32,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from .ocp_compat import TColgp_Array2OfPnt
+from .ocp_compat import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
 from .ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.BRep import BRep_Builder
-from OCP.Geom import Geom_BSplineSurface
-from OCP.gp import gp_Pnt
-from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
-from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape, TopoDS_Vertex
+from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface
+from OCP.Geom2d import Geom2d_BSplineCurve
+from OCP.gp import gp_Pnt, gp_Pnt2d
+from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from patching.bernstein import evaluate_nets
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
+from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, edge_chains, find_blocks
+
 from export.brep import (
     BrepError,
-    bezier_curve,
     bezier_surface,
     line_2d,
-    pcurve,
-    side_row,
+    piece_lists,
     assemble,
-    bound_face,
+    bound_face_pieces,
+    bezier_curve,
+    edge_curves,
+    make_edge,
+    make_vertices,
     checked_patches,
     patch_components,
     no_volume_components,
@@ -62,141 +64,24 @@ from export.brep import (
     shape_tolerance,
 )
 
-__all__ = ["Block", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
+__all__ = ["Block", "MAX_SIDE", "PackReport", "find_blocks", "patch_spans", "to_packed_shape"]
 
 #: Knot removal tolerance (model units, times the surface size): C2 joins of patches computed
 #: in double precision agree to ~1e-15; 1e-13 leaves room for round-off only.
 KNOT_TOLERANCE = 1e-13
 #: Largest allowed difference between a packed face and its patches, times the surface size.
 EXACTNESS = 1e-12
-#: Blocks have at most this many patches a side (keeps each face's pole grid moderate).
-MAX_SIDE = 128
-
-
-@dataclass(frozen=True)
-class Block:
-    """A w x h grid of patch rows: rows[i, j] is the patch at column i (along u), row j (along
-    v); turns[i, j] how many quarter turns its net is rotated (side k of the block = the
-    patch's original side (k + turns) mod 4); du (w,), dv (h,) the knot intervals."""
-
-    rows: np.ndarray
-    turns: np.ndarray
-    du: np.ndarray
-    dv: np.ndarray
-
-
-def _neighbours(surface: BezierSurface) -> np.ndarray:
-    """(p, 4, 2) int64: (row, side) across each side; (-1, -1) on a boundary, where an edge
-    has other than two sides, or where both are one patch's (left unpacked)."""
-    side_edge = np.asarray(surface.topology.side_edge, dtype=np.int64).ravel()
-    out = np.full((side_edge.size, 2), -1, dtype=np.int64)
-    by_edge = np.argsort(side_edge, kind="stable")
-    uses = np.bincount(side_edge, minlength=int(side_edge.max()) + 1 if side_edge.size else 0)
-    e = side_edge[by_edge]
-    starts = (e[:-1] == e[1:]) & (uses[e[:-1]] == 2)  # the two sides of an edge, sorted together
-    first, second = by_edge[:-1][starts], by_edge[1:][starts]
-    pair = first // 4 != second // 4
-    a, b = first[pair], second[pair]
-    out[a] = np.stack([b // 4, b % 4], axis=1)
-    out[b] = np.stack([a // 4, a % 4], axis=1)
-    return out.reshape(-1, 4, 2)
-
-
-def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
-    """Rectangular blocks of at least 2 bicubic patches (module docstring, step 1).
-
-    spans: (p, 2) float64, the knot intervals of each patch along its s and t.
-    No side on a block's boundary faces a patch of the same block (a full ring of a torus,
-    or a helix of patches on a twisted one), so that no packed face meets itself along a seam.
-    Raises UnsupportedError for a surface with split sides (T-junctions)."""
-    surface.topology.require_whole_sides("packing faces")
-    p = surface.n_patches
-    cubic = np.zeros(p, dtype=bool)
-    offset = 0
-    for g in surface.groups:
-        cubic[offset : offset + len(g.faces)] = g.degree == 3
-        offset += len(g.faces)
-    nb = _neighbours(surface)
-    free = cubic.copy()
-
-    def across(row: int, turn: int, side: int):
-        """(row, turn) of the patch across block side ``side`` of (row, turn), placed in the
-        block's frame, or None."""
-        r, s = nb[row, (side + turn) % 4]
-        if r < 0:
-            return None
-        return int(r), int((s - (side + 2)) % 4)  # its side s plays the opposite block side
-
-    def faces_block(cells, sides, block: set) -> bool:
-        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block``."""
-        return any((x := across(r, t, k)) is not None and x[0] in block for r, t in cells for k in sides)
-
-    blocks = []
-    for seed in range(p):
-        if not free[seed]:
-            continue
-        row0 = [(seed, 0)]
-        taken = {seed}
-        while len(row0) < MAX_SIDE:
-            nxt = across(*row0[-1], 1)
-            if nxt is None or not free[nxt[0]] or nxt[0] in taken:
-                break
-            # Its sides 0, 1, 2 stay on the block's boundary (or become inner sides towards
-            # patches not yet taken): none may face the row itself (a ring closes at side 1).
-            if faces_block([nxt], (0, 1, 2), taken | {nxt[0]}):
-                break
-            row0.append(nxt)
-            taken.add(nxt[0])
-        grid = [row0]
-        while len(grid) < MAX_SIDE:
-            above = [across(r, t, 2) for r, t in grid[-1]]
-            if any(a is None or not free[a[0]] or a[0] in taken for a in above):
-                break
-            ids = [a[0] for a in above]
-            if len(set(ids)) != len(ids):
-                break
-            # A grid: right of each patch above is the next one above.
-            if any(across(*above[i], 1) != above[i + 1] for i in range(len(above) - 1)):
-                break
-            # The new row's outer sides: 2 of every patch, 3 of the first and 1 of the last.
-            block = taken | set(ids)
-            if faces_block(above, (2,), block) or faces_block(above[:1], (3,), block) or faces_block(above[-1:], (1,), block):
-                break
-            grid.append(above)
-            taken.update(ids)
-        if len(taken) < 2:
-            continue
-        rows = np.array([[r for r, _ in line] for line in grid], dtype=np.int64).T  # (w, h)
-        turns = np.array([[t for _, t in line] for line in grid], dtype=np.int64).T
-        span = spans[rows]  # (w, h, 2) in each patch's own frame
-        odd = turns % 2 == 1
-        du = np.where(odd, span[..., 1], span[..., 0])
-        dv = np.where(odd, span[..., 0], span[..., 1])
-        if not (np.allclose(du, du[:, :1], rtol=1e-12) and np.allclose(dv, dv[:1, :], rtol=1e-12)):
-            continue  # not one knot grid: leave the patches alone
-        free[rows.ravel()] = False
-        blocks.append(Block(rows, turns, du[:, 0].copy(), dv[0, :].copy()))
-    return blocks
 
 
 def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
     """The B-spline of a block (steps 2 and 3), or None if it is not the patches to EXACTNESS."""
     w, h = block.rows.shape
-    turned = np.empty((w, h, 4, 4, 3))
-    for i in range(w):
-        for j in range(h):
-            turned[i, j] = np.rot90(nets[block.rows[i, j]], -int(block.turns[i, j]), axes=(0, 1))
+    turned, grid = block_poles(block, nets)
     poles = TColgp_Array2OfPnt(1, 3 * w + 1, 1, 3 * h + 1)
-    grid = np.empty((3 * w + 1, 3 * h + 1, 3))
-    for i in range(w):
-        for j in range(h):
-            grid[3 * i : 3 * i + 4, 3 * j : 3 * j + 4] = turned[i, j]
-    for a in range(3 * w + 1):
-        for b in range(3 * h + 1):
-            x, y, z = grid[a, b]
-            poles.SetValue(a + 1, b + 1, gp_Pnt(float(x), float(y), float(z)))
-    u = np.concatenate([[0.0], np.cumsum(block.du)])
-    v = np.concatenate([[0.0], np.cumsum(block.dv)])
+    for a, line in enumerate(grid.tolist()):
+        for b, (x, y, z) in enumerate(line):
+            poles.SetValue(a + 1, b + 1, gp_Pnt(x, y, z))
+    u, v = block.knots
 
     def knots(values):
         k = TColStd_Array1OfReal(1, len(values))
@@ -215,18 +100,40 @@ def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
         bspline.RemoveUKnot(i, 1, tol) or bspline.RemoveUKnot(i, 2, tol)
     for j in range(len(v) - 1, 1, -1):
         bspline.RemoveVKnot(j, 1, tol) or bspline.RemoveVKnot(j, 2, tol)
-    # Step 3: the packed surface against every patch on a 5 x 5 grid.
+    # Step 3: the packed surface against every patch on a 5 x 5 grid, the B-spline evaluated
+    # from OpenCASCADE's poles and knots after the removal (``_bspline_grid``).
     s = np.linspace(0.0, 1.0, 5)
     ss, tt = (a.ravel() for a in np.meshgrid(s, s, indexing="ij"))
-    expected = evaluate_nets(turned.reshape(-1, 4, 4, 3), ss, tt)  # (w*h, 25, 3)
-    got = np.array([
-        bspline.Value(float(u[i] + a * block.du[i]), float(v[j] + b * block.dv[j])).Coord()
-        for i in range(w) for j in range(h) for a, b in zip(ss, tt)
-    ]).reshape(expected.shape)
+    expected = evaluate_nets(turned.reshape(-1, 4, 4, 3), ss, tt).reshape(w, h, 5, 5, 3).transpose(0, 2, 1, 3, 4)
+    got = _bspline_grid(bspline, (u[:-1, None] + s[None, :] * block.du[:, None]).ravel(),
+                        (v[:-1, None] + s[None, :] * block.dv[:, None]).ravel()).reshape(expected.shape)
     worst = float(np.linalg.norm(got - expected, axis=-1).max())
     if worst > EXACTNESS * max(size, 1e-300):
         return None, u, v
     return bspline, u, v
+
+
+def _flat_knots(knots, mults) -> np.ndarray:
+    return np.repeat(np.asarray(knots, dtype=np.float64), np.asarray(mults, dtype=np.int64))
+
+
+def _bspline_grid(bspline: Geom_BSplineSurface, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(len(x), len(y), 3) points of a non-rational B-spline surface on the grid x by y, from
+    its poles and knots (scipy's B-spline basis: one matrix product, not a Value call per
+    point)."""
+    from scipy.interpolate import BSpline
+
+    nu, nv = bspline.NbUPoles(), bspline.NbVPoles()
+    poles = np.array([[bspline.Pole(i, j).Coord() for j in range(1, nv + 1)] for i in range(1, nu + 1)])
+    tu = _flat_knots([bspline.UKnot(i) for i in range(1, bspline.NbUKnots() + 1)],
+                     [bspline.UMultiplicity(i) for i in range(1, bspline.NbUKnots() + 1)])
+    tv = _flat_knots([bspline.VKnot(i) for i in range(1, bspline.NbVKnots() + 1)],
+                     [bspline.VMultiplicity(i) for i in range(1, bspline.NbVKnots() + 1)])
+    bu = BSpline.design_matrix(np.clip(x, tu[0], tu[-1]), tu, bspline.UDegree()).tocsr()
+    bv = BSpline.design_matrix(np.clip(y, tv[0], tv[-1]), tv, bspline.VDegree()).tocsr()
+    along_u = bu @ poles.reshape(nu, nv * 3)  # (x, nv * 3): sparse rows of d + 1 entries
+    both = bv @ along_u.reshape(len(x), nv, 3).transpose(1, 0, 2).reshape(nv, len(x) * 3)
+    return both.reshape(len(y), len(x), 3).transpose(1, 0, 2)
 
 
 @dataclass(frozen=True)
@@ -247,16 +154,13 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     closed, else a shell, checked by ``BRepCheck_Analyzer`` unless ``check`` is False.
 
     spans: (p, 2) knot intervals of every patch along its s and t (``patch_spans``).
-    Raises UnsupportedError for a surface with split sides (T-junctions): blocks are found
-    through one edge per side (``export.brep.to_shape`` builds those surfaces)."""
+    Split sides (T-junctions of adaptive refinement) are kept as in ``export.brep.to_shape``:
+    a block's boundary side is tiled by its pieces, one shared edge each."""
     topo = surface.topology
-    topo.require_whole_sides("packing faces")
     nets = [net for _, _, _, net in checked_patches(surface, check)]  # to_shape's checks: bad input is refused alike
     tol = shape_tolerance(surface)
     builder = BRep_Builder()
-    corner_vertex = np.asarray(topo.corner_vertex, dtype=np.int64)
-    side_edge = np.asarray(topo.side_edge, dtype=np.int64)
-    side_reversed = np.asarray(topo.side_reversed, dtype=bool)
+    pieces = topo.pieces
 
     faces_plan = []  # ("patch", row) or ("block", block, bspline, u, v)
     in_block = np.zeros(len(nets), dtype=bool)
@@ -269,59 +173,76 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     faces_plan += [("patch", row) for row in range(len(nets)) if not in_block[row]]
 
     # Sides on a face boundary: every side of a lone patch, the outer sides of a block.
-    used_sides: list[tuple[int, int]] = []
+    on_boundary = np.zeros(4 * len(nets), dtype=bool)
+    on_boundary[4 * np.flatnonzero(~in_block)[:, None] + np.arange(4)] = True
     for plan in faces_plan:
-        if plan[0] == "patch":
-            used_sides += [(plan[1], k) for k in range(4)]
-        else:
-            used_sides += [(r, (k + t) % 4) for r, t, k in _boundary(plan[1])]
-    used_edges = {int(side_edge[r, k]) for r, k in used_sides}
+        if plan[0] == "block":
+            on_boundary[[4 * r + (k + t) % 4 for r, t, k in block_boundary(plan[1])]] = True
+    used = np.zeros(topo.n_edges, dtype=bool)
+    used[pieces.edge[on_boundary[pieces.side]]] = True
+    curves = edge_curves(pieces, topo.n_edges, nets, used)
+    used_vertices = np.zeros(topo.n_vertices, dtype=bool)
+    used_vertices[[v for _, v0, v1 in curves.values() for v in (v0, v1)]] = True
+    vertices = make_vertices(builder, topo, nets, tol, used_vertices)
 
-    vertices: dict[int, TopoDS_Vertex] = {}
-
-    def vertex(vid: int, point) -> TopoDS_Vertex:
-        if vid not in vertices:
-            v = TopoDS_Vertex()
-            builder.MakeVertex(v, gp_Pnt(*(float(c) for c in point)), tol)
-            vertices[vid] = v
-        return vertices[vid]
-
-    edges: dict[int, TopoDS_Edge] = {}
-    for row, net in enumerate(nets):  # in row order, so an edge's curve is its first side's
-        d = net.shape[0] - 1
-        corners = (net[0, 0], net[d, 0], net[d, d], net[0, d])
-        for k in range(4):
-            eid = int(side_edge[row, k])
-            if eid in edges or eid not in used_edges:
-                continue
-            rev = bool(side_reversed[row, k])
-            curve_row = side_row(net, k)[::-1] if rev else side_row(net, k)
-            e = TopoDS_Edge()
-            builder.MakeEdge(e, bezier_curve(curve_row), tol)
-            a, b = ((k + 1) % 4, k) if rev else (k, (k + 1) % 4)
-            builder.Add(e, vertex(int(corner_vertex[row, a]), corners[a]).Oriented(TopAbs_FORWARD))
-            builder.Add(e, vertex(int(corner_vertex[row, b]), corners[b]).Oriented(TopAbs_REVERSED))
-            edges[eid] = e
-
-    faces = []
+    # Each face's wire: (edge, reversed, pcurve start, pcurve end), the pcurve a segment in
+    # the face's (u, v) in the edge's own direction.
+    indptr, edge_of, reversed_, _, ranges = piece_lists(pieces)
+    corners = CORNER_PARAMETERS.tolist()
+    surfaces, wires = [], []
     for plan in faces_plan:
-        f = TopoDS_Face()
+        wire = []
         if plan[0] == "patch":
             row = plan[1]
-            builder.MakeFace(f, bezier_surface(nets[row]), tol)
-            sides = [(row, k, pcurve(k, bool(side_reversed[row, k]))) for k in range(4)]
+            surfaces.append(bezier_surface(nets[row]))
+            cells = [(row, k, (0.0, 0.0), (1.0, 1.0), k) for k in range(4)]
         else:
             _, block, bspline, u, v = plan
-            builder.MakeFace(f, bspline, tol)
-            sides = []
-            for r, t, k, (i, j) in _boundary(block, with_cell=True):
-                corner = lambda c: (u[i] + CORNER_PARAMETERS[c][0] * block.du[i], v[j] + CORNER_PARAMETERS[c][1] * block.dv[j])  # noqa: E731
-                a, b = corner(k), corner((k + 1) % 4)
-                original = (k + t) % 4
-                if side_reversed[r, original]:
-                    a, b = b, a
-                sides.append((r, original, line_2d(a, b)))
-        bound_face(builder, f, sides, edges, side_edge, side_reversed, tol)
+            surfaces.append(bspline)
+            # Side k of cell (i, j) in the block's (u, v); the patch's own side (k + t) mod 4
+            # runs the same way (a turn keeps the orientation), so its pieces' u0, u1 map
+            # linearly onto it: the B-spline on that span is the patch, SameParameter holds.
+            u_, v_, du, dv = u.tolist(), v.tolist(), block.du.tolist(), block.dv.tolist()
+            cells = [(r, (k + t) % 4, (u_[i], v_[j]), (du[i], dv[j]), k) for r, t, k, (i, j) in block_boundary(block, with_cell=True)]
+        for r, own, (ou, ov), (su, sv), k in cells:
+            (a0, a1), (b0, b1) = corners[k], corners[(k + 1) % 4]
+            for piece in range(indptr[4 * r + own], indptr[4 * r + own + 1]):
+                u0, u1 = ranges[piece][::-1] if reversed_[piece] else ranges[piece]
+                # side_point(k, w) = C_k + w (C_{k+1} - C_k), in plain floats (170k pieces on the pawn)
+                a = np.array([ou + su * (a0 + u0 * (b0 - a0)), ov + sv * (a1 + u0 * (b1 - a1))])
+                b = np.array([ou + su * (a0 + u1 * (b0 - a0)), ov + sv * (a1 + u1 * (b1 - a1))])
+                wire.append((edge_of[piece], reversed_[piece], a, b))
+        wires.append(wire)
+
+    # Runs of edges between the same two faces become one multi-span edge (edge_chains).
+    chains = edge_chains([[(e, r) for e, r, _, _ in w] for w in wires], {e: c[1:] for e, c in curves.items()},
+                         {e: len(c[0]) - 1 for e, c in curves.items()}, _turns(wires, curves))
+    # A chain's knots: the lengths of its segments in the (u, v) of a face it bounds (the
+    # knot intervals there, in which the joins of same-level patches are C2), scaled to [0, 1].
+    length: dict[int, float] = {}
+    for w in wires:  # the first face of the pair, for every edge of the chain alike
+        for e, _, a, b in w:
+            if e not in length:
+                length[e] = abs(b[0] - a[0]) + abs(b[1] - a[1])
+    chain_of, chain_knots = {}, []
+    edges = []
+    for c, chain in enumerate(chains):
+        at = np.concatenate([[0.0], np.cumsum([length[e] for e, _ in chain])])
+        chain_knots.append(at / at[-1])
+        rows = [curves[e][0][::-1] if back else curves[e][0] for e, back in chain]
+        first, last = curves[chain[0][0]], curves[chain[-1][0]]
+        v0 = first[2] if chain[0][1] else first[1]
+        v1 = last[1] if chain[-1][1] else last[2]
+        curve = bezier_curve(rows[0]) if len(rows) == 1 else _chain_curve(rows, chain_knots[c], KNOT_TOLERANCE * float(surface.size))
+        edges.append(make_edge(builder, curve, vertices[v0], vertices[v1], tol))
+        for k, (e, back) in enumerate(chain):
+            chain_of[e] = (c, k, back)
+
+    faces = []
+    for surf, wire in zip(surfaces, wires):
+        f = TopoDS_Face()
+        builder.MakeFace(f, surf, tol)
+        bound_face_pieces(builder, f, _chained_wire(wire, chain_of, chains, chain_knots), edges, tol)
         faces.append(f)
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
@@ -329,7 +250,7 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     volumes = _component_volumes(surface)
     flat = no_volume_components(surface, volumes)
     order = iter([None if i in flat else v < 0.0 for i, v in enumerate(volumes.tolist())])
-    shape = assemble(builder, list(edges.values()), faces, topo, lambda solid: next(order), face_rows)
+    shape = assemble(builder, edges, faces, topo, lambda solid: next(order), face_rows)
     warn_no_volume(surface, *patch_components(topo), flat)
     if check:
         from OCP.BRepCheck import BRepCheck_Analyzer
@@ -339,6 +260,96 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
             raise BrepError("BRepCheck_Analyzer rejects the packed B-rep")
     blocks = tuple((p[1], p[3], p[4]) for p in faces_plan if p[0] == "block")
     return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)
+
+
+def _turns(wires, curves) -> set[int]:
+    """Vertices where a face's wire turns: the segments of two consecutive wire entries (in
+    the face's (u, v)) are not parallel there."""
+    out = set()
+    for wire in wires:
+        for (e, rev, a, b), (_, rev2, a2, b2) in zip(wire, wire[1:] + wire[:1]):
+            d1 = a - b if rev else b - a
+            d2 = a2 - b2 if rev2 else b2 - a2
+            if abs(d1[0] * d2[1] - d1[1] * d2[0]) > 1e-9 * np.linalg.norm(d1) * np.linalg.norm(d2):
+                out.add(curves[e][1] if rev else curves[e][2])  # the vertex the entry ends at
+    return out
+
+
+def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float) -> Geom_BSplineCurve:
+    """The Bézier rows (each (d+1, 3), end to start) as one B-spline curve on [0, 1], row k on
+    [knots_at[k], knots_at[k+1]] (interior knots of multiplicity d: exactly the rows), then each
+    interior knot removed where the join is C2 (C1) to within ``tol``.  OpenCASCADE's removal
+    is checked: the curve is compared with the rows at 5 parameters of each, and where it is
+    off by more than ``tol`` the knots all stay (measured: a chain parametrised uniformly
+    across unequal knot intervals lost its knots with 1e-2 of error)."""
+    d, n = len(rows[0]) - 1, len(rows)
+    points = np.concatenate([rows[0]] + [r[1:] for r in rows[1:]])
+
+    def make() -> Geom_BSplineCurve:
+        poles = TColgp_Array1OfPnt(1, len(points))
+        for i, (x, y, z) in enumerate(points.tolist()):
+            poles.SetValue(i + 1, gp_Pnt(x, y, z))
+        knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
+        for i in range(n + 1):
+            knots.SetValue(i + 1, float(knots_at[i]))
+            mults.SetValue(i + 1, d + 1 if i in (0, n) else d)
+        return Geom_BSplineCurve(poles, knots, mults, d)
+
+    curve = make()
+    for i in range(n, 1, -1):
+        curve.RemoveKnot(i, 1, tol) or curve.RemoveKnot(i, 2, tol)
+    if curve.NbKnots() < n + 1:
+        t = np.linspace(0.0, 1.0, 5)
+        expected = evaluate_nets(np.stack([np.stack([r] * (d + 1), axis=1) for r in rows]), t, np.zeros(5))
+        lo, hi = knots_at[:-1, None], knots_at[1:, None]
+        got = np.array([curve.Value(float(w)).Coord() for w in (lo + t[None, :] * (hi - lo)).ravel().tolist()])
+        if np.linalg.norm(got - expected.reshape(-1, 3), axis=1).max() > tol:
+            curve = make()
+    return curve
+
+
+def _polyline_2d(points: list[np.ndarray], knots_at: np.ndarray) -> Geom2d_BSplineCurve:
+    """Degree-1 pcurve through ``points``, segment k on [knots_at[k], knots_at[k+1]] (the
+    knots of ``_chain_curve``, which knot removal does not move)."""
+    n = len(points) - 1
+    poles = TColgp_Array1OfPnt2d(1, n + 1)
+    knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
+    for i, (x, y) in enumerate(np.asarray(points, dtype=np.float64).tolist()):
+        poles.SetValue(i + 1, gp_Pnt2d(x, y))
+        knots.SetValue(i + 1, float(knots_at[i]))
+        mults.SetValue(i + 1, 2 if i in (0, n) else 1)
+    return Geom2d_BSplineCurve(poles, knots, mults, 1)
+
+
+def _chained_wire(wire, chain_of: dict, chains, chain_knots) -> list:
+    """A face's wire of (edge, reversed, a, b) as (chain edge, reversed, pcurve): each run of
+    one chain's edges (consecutive, perhaps around the wire's start) one entry, its pcurve the
+    polyline of the run's segments in the chain's direction."""
+    keys = [chain_of[e][0] for e, _, _, _ in wire]
+    start = next((i for i in range(len(wire)) if keys[i] != keys[i - 1]), 0)
+    wire, keys = wire[start:] + wire[:start], keys[start:] + keys[:start]
+    out, i = [], 0
+    while i < len(wire):
+        c = keys[i]
+        j = i
+        while j < len(wire) and keys[j] == c:
+            j += 1
+        segment = {e: (a, b) for e, _, a, b in wire[i:j]}
+        chain = chains[c]
+        e0, rev0 = wire[i][0], wire[i][1]
+        agree = rev0 == chain_of[e0][2]  # the face runs along the chain
+        if len(chain) == 1:  # each use on its own (a seam uses its edge twice, both ways)
+            out += [(c, rev, line_2d(a, b)) for _, rev, a, b in wire[i:j]]
+        else:
+            points = []
+            for e, back in chain:
+                a, b = segment[e]
+                a, b = (b, a) if back else (a, b)
+                points = points or [a]
+                points.append(b)
+            out.append((c, not agree, _polyline_2d(points, chain_knots[c])))
+        i = j
+    return out
 
 
 def _signed_volumes(surface: BezierSurface) -> np.ndarray:
@@ -365,18 +376,6 @@ def _component_volumes(surface: BezierSurface) -> np.ndarray:
     return volumes[closed]
 
 
-def _boundary(block: Block, with_cell: bool = False):
-    """(row, turn, block side k[, (i, j)]) of the block's boundary, counter-clockwise: the
-    bottom row's sides 0 left to right, the right column's sides 1 upwards, the top row's
-    sides 2 right to left, the left column's sides 3 downwards."""
-    w, h = block.rows.shape
-    cells = [(i, 0, 0) for i in range(w)] + [(w - 1, j, 1) for j in range(h)]
-    cells += [(i, h - 1, 2) for i in range(w - 1, -1, -1)] + [(0, j, 3) for j in range(h - 1, -1, -1)]
-    for i, j, k in cells:
-        item = (int(block.rows[i, j]), int(block.turns[i, j]), k)
-        yield item + ((i, j),) if with_cell else item
-
-
 def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
     """(p, 2) knot intervals of every patch along its s and t, from the mesh it was built from
     (``Topology.face_spans``: the intervals of the face's edges h0 and h1).  Wrong
@@ -385,6 +384,9 @@ def patch_spans(surface: BezierSurface, mesh) -> np.ndarray:
     from patching.operator import patched_mesh
     from patching.topology.tables import Topology
 
+    if surface.groups and all(g.spans is not None for g in surface.groups):
+        # The refinement gave them (the adaptive path: patches of several levels).
+        return np.concatenate([np.asarray(g.spans, dtype=np.float64).reshape(-1, 2) for g in surface.groups])
     surface.topology.require_whole_sides("--pack")
     # build_operator patches the mesh after its global steps for semi-sharp tags and n-gons
     #: its faces are those.  A surface without split sides is that mesh's, whichever

@@ -30,7 +30,10 @@ class BuildJob:
 
     mesh, out: paths; fmt: a format of ``export.formats.FORMATS``; tolerance: the linear
     deflection of tessellated formats (None: their default); options: the build's choices;
-    pack: regular regions as multi-span B-spline faces (exact formats only); intervals: how
+    pack: regular regions as multi-span B-spline faces (exact formats only): True packs after
+    global refinement, False never packs, None (the default) packs what the adaptive path
+    builds (semi-sharp tags refined near the features: there the leaves' regular regions are
+    thousands of patches of one B-spline, the file otherwise tens of MB); intervals: how
     strips without interval tags get theirs (``patching.topology.intervals``); cache: keep solved
     local configurations on disk between builds (``export.solve_cache``; the command line's default)."""
 
@@ -39,7 +42,7 @@ class BuildJob:
     fmt: str
     tolerance: float | None = None
     options: BuildOptions = field(default_factory=BuildOptions)
-    pack: bool = False
+    pack: bool | None = None
     intervals: str = "tags"
     cache: bool = False
 
@@ -72,12 +75,15 @@ def _run_build(job: BuildJob, stage: Callable[[str], None]) -> tuple[int, int]:
     stage(STAGES[0])
     mesh = read_control_mesh(job.mesh, job.intervals)
     stage(STAGES[1])
-    pack = job.pack and job.fmt in EXACT_FORMATS
-    # Packing merges the patches of one mesh: semi-sharp tags then take the global steps while
+    exact = job.fmt in EXACT_FORMATS
+    # --pack merges the patches of one mesh: semi-sharp tags then take the global steps while
     # they fit (``patching.operator.refinement``), not the adaptive path.
-    options = BuildOptions.of(job.options, refinement="global") if pack else job.options
+    options = BuildOptions.of(job.options, refinement="global") if job.pack and exact else job.options
     surface = patching.build(mesh, options)
     stage(STAGES[2])
+    # By default the adaptive path's output is packed: its patches carry their knot spans.
+    adaptive = bool(surface.groups) and all(g.spans is not None for g in surface.groups)
+    pack = exact and (job.pack or (job.pack is None and adaptive))
     if pack:
         from export.pack import patch_spans, to_packed_shape
 
@@ -99,11 +105,12 @@ def build_file(
     format: str | None = None,
     *,
     options: BuildOptions | None = None,
-    pack: bool = False,
+    pack: bool | None = None,
     tolerance: float | None = None,
 ) -> Path:
     """Build the mesh file ``mesh`` and write it to ``out`` (default: beside it, ``.step``) in
-    ``format`` (default: from the suffix), exactly as ``nupatch build`` does; returns the path."""
+    ``format`` (default: from the suffix), exactly as ``nupatch build`` does; returns the path.
+    pack: as ``BuildJob.pack`` (None: pack the adaptive path's output)."""
     from export.atomic import check_output_path
     from export.formats import format_of
 

@@ -43,11 +43,15 @@ class PatchGroup:
     degree: d (3 for bicubic, 5 for bi-quintic).
     faces: (k,) int64, the mesh face each patch covers.
     coefficients: (k, d+1, d+1, 3) float64, see the module docstring for the ordering.
+    spans: optional (k, 2) float64, each patch's knot intervals along s and t, where the
+        refinement that made the patches knows them (the adaptive path, whose patches cover
+        faces of several levels); None: those of the faces (``export.pack.patch_spans``).
     """
 
     degree: int
     faces: np.ndarray
     coefficients: np.ndarray
+    spans: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return f"PatchGroup(degree {self.degree}, {len(self.faces)} patches)"
@@ -210,11 +214,13 @@ class BezierSurface:
 
 @dataclass(frozen=True)
 class OperatorGroup:
-    """Rows of one degree: ``faces`` (k,) mesh faces, rows from ``row_offset``."""
+    """Rows of one degree: ``faces`` (k,) mesh faces, rows from ``row_offset``; ``spans``
+    optional (k, 2) knot intervals of the patches (``PatchGroup.spans``)."""
 
     degree: int
     faces: np.ndarray
     row_offset: int
+    spans: np.ndarray | None = None
 
     @property
     def n_rows(self) -> int:
@@ -245,7 +251,7 @@ class SurfaceOperator:
         for g in self.groups:
             d = g.degree
             block = coeffs[g.row_offset : g.row_offset + g.n_rows].reshape(-1, d + 1, d + 1, 3)
-            groups.append(PatchGroup(d, g.faces, block))
+            groups.append(PatchGroup(d, g.faces, block, g.spans))
         size = used_size(points, self.used_points)  # a stray unused vertex does not count
         return BezierSurface(tuple(groups), self.topology, self.name, size)
 

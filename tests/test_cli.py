@@ -413,10 +413,11 @@ def test_info_reports_what_the_sharp_features_become(run_cli):
     assert info["sharp_features"] == {"corners": 10, "darts": 10, "sector_vertices": 15}
 
 
-def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, cli_main):
+def test_pack_takes_semi_sharp_meshes_and_adaptive_ones(tmp_path, cli_main):
     """--pack reads the knot spans of the faces the patches cover: after the global steps of a
-    semi-sharp mesh those of the refined mesh (patching.operator.patched_mesh); an adaptively
-    refined surface (T-junctions) is refused in one line and nothing is written."""
+    semi-sharp mesh those of the refined mesh (patching.operator.patched_mesh); where even
+    the global setting refines adaptively (7 steps), the spans the adaptive path gives its
+    patches, and the split sides (T-junctions) stay shared edges of the packed faces."""
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 2\n"))
     out = tmp_path / "ring.step"
@@ -425,9 +426,11 @@ def test_pack_takes_semi_sharp_meshes_and_refuses_adaptive_ones(tmp_path, cli_ma
     assert out.exists()
     deep = tmp_path / "deep.obj"
     deep.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 7\n"))  # 7 steps: adaptive
-    refused = tmp_path / "deep.step"
-    _assert_refused(cli_main("build", deep, "-o", refused, "--pack"), "--pack needs one edge per patch side")
-    assert not refused.exists()
+    packed, plain = tmp_path / "deep.step", tmp_path / "deep_plain.step"
+    assert cli_main("build", deep, "-o", packed, "--pack", "-q").returncode == 0
+    assert cli_main("build", deep, "-o", plain, "--no-pack", "-q").returncode == 0
+    faces = [p.read_text().count("ADVANCED_FACE(") for p in (packed, plain)]
+    assert faces[0] < faces[1] / 4
 
 
 def test_pack_keeps_the_global_steps_that_build_leaves_for_the_adaptive_path(tmp_path, run_cli):
@@ -438,7 +441,7 @@ def test_pack_keeps_the_global_steps_that_build_leaves_for_the_adaptive_path(tmp
 
     mesh = tmp_path / "ring.obj"
     mesh.write_text(torus_obj(6, 5, extra="t crease 2/1/0 0 1 3\n"))
-    plain = run_build(BuildJob(str(mesh), str(tmp_path / "plain.step"), "step"))
+    plain = run_build(BuildJob(str(mesh), str(tmp_path / "plain.step"), "step", pack=False))
     packed = tmp_path / "packed.step"
     result = run_cli("build", mesh, "-o", packed, "--pack", "-q")
     assert result.returncode == 0, result.stderr

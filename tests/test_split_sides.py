@@ -312,11 +312,22 @@ def test_split_ring_through_step(tmp_path, ring, split_shape):
 
 def test_readers_of_side_edge_refuse_split_sides(split_ring):
     with pytest.raises(UnsupportedError, match="T-junctions"):
-        to_packed_shape(split_ring, np.ones((split_ring.n_patches, 2)))
-    with pytest.raises(UnsupportedError, match="T-junctions"):
-        find_blocks(split_ring, np.ones((split_ring.n_patches, 2)))
-    with pytest.raises(UnsupportedError, match="T-junctions"):
         sample_graph(SimpleNamespace(topology=split_ring.topology), np.arange(3))
+
+
+def test_packing_keeps_split_sides_shared(split_ring):
+    """Packing reads the pieces: a block never crosses a split side, and the split sides stay
+    shared edges of the packed faces (one valid solid, no free edge)."""
+    from patching.evaluation.packing import block_neighbours
+
+    shape, report = to_packed_shape(split_ring, np.ones((split_ring.n_patches, 2)))
+    assert report.packed_faces >= 1 and count(shape, TopAbs_SOLID) == 1
+    result = check_continuity(shape)
+    assert result.valid and result.n_free_edges == 0 and result.max_gap_relative < 1e-12
+    split = np.diff(split_ring.topology.side_indptr).reshape(-1, 4) != 1
+    nb = block_neighbours(split_ring)
+    assert np.all(nb[split] == -1)
+    assert find_blocks(split_ring, np.ones((split_ring.n_patches, 2)))
 
 
 def test_packing_still_works_on_the_unsplit_table(ring):

@@ -120,6 +120,9 @@ class AdaptivePatches:
 
     matrix: (rows, n0) CSR; patch p owns rows ``row_offset[p] + i (d+1) + j`` for net[i, j].
     level, face, degree, row_offset: (p,) int64; ``face`` is the global level-``level`` face id.
+    spans: (p, 2) float64, the knot intervals of each patch's face along s and t on its level's
+        window (``Topology.face_spans``: halved at every level), which ``export.pack`` joins
+        blocks of same-level patches with.
     junctions: (k, 6) float64 rows (coarse patch, coarse side, fine patch, fine side, u0, u1):
         the fine side covers [u0, u1] of the coarse side's parameter (in the coarse side's
         direction, 0..1) and runs the other way (u = u1 - w (u1 - u0)); one row per pair of
@@ -135,6 +138,7 @@ class AdaptivePatches:
     junctions: np.ndarray
     steps: int
     stats: tuple
+    spans: np.ndarray | None = None
 
     @property
     def n_patches(self) -> int:
@@ -375,7 +379,7 @@ def adaptive_operator(
                 faces_here = window_face[pick]
                 lev.patch[faces_here] = n_patches + np.arange(pick.size)
                 n_patches += pick.size
-                meta.append((np.full(pick.size, j), lev.gid[faces_here], np.full(pick.size, g.degree)))
+                meta.append((np.full(pick.size, j), lev.gid[faces_here], np.full(pick.size, g.degree), topo.face_spans[faces_here]))
         stats.append((int(domain.sum()), int(refine.sum()), int(leaves.sum()), topo.n_faces, n_patch_faces))
         levels.append(lev)
         if j == steps:
@@ -410,9 +414,10 @@ def adaptive_operator(
     level = np.concatenate([m[0] for m in meta]).astype(np.int64) if meta else np.zeros(0, np.int64)
     face = np.concatenate([m[1] for m in meta]).astype(np.int64) if meta else np.zeros(0, np.int64)
     degree = np.concatenate([m[2] for m in meta]).astype(np.int64) if meta else np.zeros(0, np.int64)
+    spans = np.concatenate([m[3] for m in meta]).astype(np.float64) if meta else np.zeros((0, 2))
     row_offset = np.concatenate([[0], np.cumsum((degree + 1) ** 2)[:-1]]).astype(np.int64)
     junctions = _junctions(levels, mesh)
-    result = AdaptivePatches(matrix, level, face, degree, row_offset, junctions, steps, tuple(stats))
+    result = AdaptivePatches(matrix, level, face, degree, row_offset, junctions, steps, tuple(stats), spans)
     return (result, levels) if keep_levels else result
 
 
@@ -517,7 +522,7 @@ def adaptive_surface_operator(mesh: ControlMesh, options: BuildOptions) -> Surfa
         rows = (patches.row_offset[ids][:, None] + np.arange((d + 1) ** 2)[None, :]).ravel()
         blocks.append(patches.matrix[rows])
         faces = patches.face[ids] * 4 ** (patches.steps - patches.level[ids])
-        groups.append(OperatorGroup(int(d), faces.astype(np.int64), offset))
+        groups.append(OperatorGroup(int(d), faces.astype(np.int64), offset, patches.spans[ids]))
         offset += rows.size
     matrix = sp.vstack(blocks).tocsr()
     return SurfaceOperator(matrix, tuple(groups), split_side_topology(order.size, table), mesh.name)

@@ -166,7 +166,8 @@ def adaptive_surface(patches, points: np.ndarray, name: str = "adaptive", size: 
     points = np.asarray(points, dtype=np.float64)
     groups = []
     for degree, (ids, nets) in sorted(patches.nets(points).items()):
-        groups.append(PatchGroup(int(degree), np.asarray(ids, dtype=np.int64), nets))
+        spans = None if patches.spans is None else patches.spans[ids]
+        groups.append(PatchGroup(int(degree), np.asarray(ids, dtype=np.int64), nets, spans))
     order, table = adaptive_layout(patches)
     if size is None:
         size = float(np.linalg.norm(np.ptp(points, axis=0))) if points.size else 0.0
