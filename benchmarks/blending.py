@@ -137,7 +137,7 @@ def main() -> None:
 FIG12_SPOKES = (8.0, 4.0, 8.0, 1.0, 1.0)
 
 
-def _ep_patches(op, mesh, column: int, samples: int, height: float):
+def ep_patches(op, mesh, column: int, samples: int, height: float):
     """Per patch of the column's support: planar x, y (samples, samples), the function's values
     and the unit normals of its graph (x, y, height f)."""
     from patching.evaluation.sampling import column_values, evaluate_nets, patch_rows
@@ -214,7 +214,7 @@ def figure(
         op = patching.build_operator(mesh, topology=topo, angles=mode, anchors=anchors)
         (q,) = ep_quality(op, lifted(mesh), topology=topo, samples=33)
         peak = float(op.matrix[:, 0].max())
-        data[mode] = (_ep_patches(op, mesh, 0, samples, 0.15 * width / peak), q)
+        data[mode] = (ep_patches(op, mesh, 0, samples, 0.15 * width / peak), q)
         op_of[mode] = op
         print(f"{stem} {mode:>9}: maxima of the EP's function {q.local_maxima[0]}, "
               f"of its 2n neighbours {sorted(set(q.local_maxima.values()))}, "
@@ -227,12 +227,12 @@ def figure(
     top = max(float(np.max([p[2].max() for p in data[m][0]])) for m in modes)
     print(f"{stem}: largest difference of the EP's function between the modes {diff:.4f} (peak {top:.4f})")
     levels = np.linspace(0.0, top, 21)
-    edges = _mesh_edges(mesh, topo)
+    edges = mesh_edges(mesh, topo)
 
     def frame(ax, patches):
-        _draw_edges(ax, edges)
+        draw_edges(ax, edges)
         ax.set_aspect("equal")
-        ax.set_xlim(*_zoom(patches, 0)), ax.set_ylim(*_zoom(patches, 1))
+        ax.set_xlim(*zoom(patches, 0)), ax.set_ylim(*zoom(patches, 1))
         ax.set_xticks([]), ax.set_yticks([])
 
     written = []
@@ -333,7 +333,7 @@ def _first_row(op, row: int) -> int:
     raise IndexError(row)
 
 
-def _mesh_edges(mesh, topo):
+def mesh_edges(mesh, topo):
     """(segments (e, 2, 2), colours): the control net's edges, strips of interval 8 red and 4 blue."""
     seg = mesh.vertices[topo.edges][:, :, :2]
     iv = topo.edge_interval
@@ -342,14 +342,14 @@ def _mesh_edges(mesh, topo):
     return seg[keep], colour[keep]
 
 
-def _draw_edges(ax, edges):
+def draw_edges(ax, edges):
     from matplotlib.collections import LineCollection
 
     seg, colour = edges
     ax.add_collection(LineCollection(seg, colors=colour, linewidths=np.where(colour == "0.6", 0.5, 1.6)))
 
 
-def _zoom(patches, axis: int):
+def zoom(patches, axis: int):
     lo = min(float(p[axis].min()) for p in patches)
     hi = max(float(p[axis].max()) for p in patches)
     pad = 0.03 * (hi - lo)

@@ -96,15 +96,15 @@ def table(configs: int, samples: int, seed: int) -> dict:
 
 
 def _contours(ax, op, mesh, column: int, samples: int, levels, title: str) -> None:
-    from blending import _draw_edges, _ep_patches, _mesh_edges, _zoom
+    from blending import draw_edges, ep_patches, mesh_edges, zoom
 
-    patches = _ep_patches(op, mesh, column, samples, 1.0)
+    patches = ep_patches(op, mesh, column, samples, 1.0)
     for x, y, v, _ in patches:
         ax.contourf(x, y, v, levels=levels, cmap="viridis", extend="min")
         ax.contour(x, y, v, levels=levels, colors="k", linewidths=0.3)
-    _draw_edges(ax, _mesh_edges(mesh, Topology(mesh)))
+    draw_edges(ax, mesh_edges(mesh, Topology(mesh)))
     ax.set_aspect("equal")
-    ax.set_xlim(*_zoom(patches, 0)), ax.set_ylim(*_zoom(patches, 1))
+    ax.set_xlim(*zoom(patches, 0)), ax.set_ylim(*zoom(patches, 1))
     ax.set_xticks([]), ax.set_yticks([])
     ax.set_title(title, fontsize=9)
 
