@@ -15,6 +15,8 @@ __all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers) -> None:
+    from patching.topology.intervals import INTERVAL_RULES
+
     p = subparsers.add_parser(
         "fit", help="fit the G1 spline to a triangle mesh (STL, OBJ, PLY, OFF, GLB) and write it as STEP"
     )
@@ -34,6 +36,11 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "--distance", choices=("sdm", "tdm"), default="sdm",
         help="squared-distance model after the point-distance steps: sdm (with curvature, default) or tdm (tangent distance)",
+    )
+    p.add_argument(
+        "--intervals", choices=INTERVAL_RULES, default="tags",
+        help="knot intervals of the control mesh: tags (a --control-mesh's own; the remeshed one's are all 1, "
+        "the paper's choice), uniform, chord or centripetal (each strip from its edge lengths before the fit)",
     )
     p.add_argument("--json", action="store_true", help="the report as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
@@ -64,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"nupatch: fitting {triangles.shape[0]} triangles ...", file=sys.stderr)
     result = fit(
         vertices, triangles, faces=args.faces, control_mesh=control, max_iterations=args.iterations,
-        distance=args.distance, sharp_angle=args.sharp_angle, name=name, labels=got.labels,
+        distance=args.distance, sharp_angle=args.sharp_angle, intervals=args.intervals, name=name, labels=got.labels,
     )
     to_step(result.surface, out)
     if args.save_control_mesh:

@@ -43,6 +43,7 @@ from ..mesh import ControlMesh, from_arrays
 from ..operator import SurfaceOperator, build_operator
 from ..surface import BezierSurface
 from ..topology import Topology
+from ..topology.intervals import INTERVAL_RULES, with_intervals
 from ..validation import as_faces, as_points
 from .distance import mesh_distance
 from .projection import FootPoints, PatchLayout, boundary_sides, evaluate, project, project_to_boundary
@@ -414,6 +415,7 @@ def fit(
     sampling: str = "auto",
     distance: str = "sdm",
     sharp_angle: float | None = None,
+    intervals: str = "tags",
     name: str = "fit",
     labels: InputLabels | None = None,
 ) -> FitResult:
@@ -434,6 +436,11 @@ def fit(
     sharp_angle: None (every control edge smooth) or degrees: input edges whose triangles'
     normals differ by more than this are carried onto the remeshed control mesh as creases
     (``features``; a given ``control_mesh`` keeps its own tags).
+    intervals: the knot intervals of the control mesh (``topology.intervals``): "tags" (a given
+    control mesh's own; the remeshed one has none, so all 1: uniform, the paper's choice),
+    "uniform", "chord" or "centripetal" (each strip the mean length of its edges, or its square
+    root, taken on the control mesh before the fit: the remesher's, or the given one; they are
+    then fixed, so M is built once and the fit stays linear in the control points).
     labels: how errors about the input name its vertices and triangles (``InputLabels``).
     Raises MeshError (bad input, remesher failure) or UnsupportedError (the [fit] extra is
     missing)."""
@@ -445,6 +452,8 @@ def fit(
         raise MeshError("all vertices coincide: the input has no extent", name)
     remesh_seconds = 0.0
     creases: dict = {}
+    if intervals not in INTERVAL_RULES:
+        raise NupatchError(f"intervals must be one of {', '.join(INTERVAL_RULES)}, not {intervals!r}", "intervals")
     if sharp_angle is not None and not (isinstance(sharp_angle, (int, float)) and 0.0 < float(sharp_angle) < 180.0):
         raise NupatchError(f"sharp_angle must be a number of degrees between 0 and 180, not {sharp_angle!r}", "sharp_angle")
     if control_mesh is None:
@@ -463,7 +472,7 @@ def fit(
                 if chains:
                     e = np.unique(np.sort(polygon_edges(polygons), axis=1), axis=0)
                     creases, qv = crease_chains(qv, e, v, chains)
-            control_mesh = from_arrays(qv, faces_list, creases=creases, name=name)
+            control_mesh = with_intervals(from_arrays(qv, faces_list, creases=creases, name=name), intervals)
             topo = Topology(control_mesh)
             operator = build_operator(control_mesh, topology=topo)
         except NupatchError as exc:
@@ -471,6 +480,7 @@ def fit(
     else:
         remesher_name = "given"
         t0 = time.perf_counter()
+        control_mesh = with_intervals(control_mesh, intervals)
         topo = Topology(control_mesh)
         operator = build_operator(control_mesh, topology=topo)
     timings["operator"] = time.perf_counter() - t0
