@@ -41,6 +41,7 @@ from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from patching.bernstein import evaluate_nets
+from patching.util.blas import one_blas_thread
 from patching.util.vectors import cross3
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
@@ -154,6 +155,7 @@ class PackReport:
     blocks: tuple[tuple[Block, np.ndarray, np.ndarray], ...]
 
 
+@one_blas_thread  # thousands of small products (the per-block check): no spinning BLAS threads
 def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = True) -> tuple[TopoDS_Shape, PackReport]:
     """The B-rep of ``surface`` with regular blocks packed (module docstring): a solid when
     closed, else a shell, checked by ``BRepCheck_Analyzer`` unless ``check`` is False.
