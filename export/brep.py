@@ -453,14 +453,15 @@ def edge_curves(pieces, n_edges: int, nets, used=None) -> dict[int, tuple[np.nda
     source = np.full(n_edges, 2 * m, dtype=np.int64)
     np.minimum.at(source, pieces.edge, np.where(pieces.whole, order, m + order))
     source = np.where(source >= m, source - m, source)
+    eids = np.argsort(first, kind="stable")
+    if used is not None:
+        eids = eids[np.asarray(used, dtype=bool)[eids]]
+    src = source[eids]  # the source pieces of the wanted edges only, as Python lists
     side, whole, ranges, vertex, reversed_ = (
-        a.tolist() for a in (pieces.side, pieces.whole, pieces.range, pieces.vertex, pieces.reversed)
+        np.asarray(a)[src].tolist() for a in (pieces.side, pieces.whole, pieces.range, pieces.vertex, pieces.reversed)
     )
     out = {}
-    for eid in np.argsort(first, kind="stable").tolist():
-        if used is not None and not used[eid]:
-            continue
-        i = int(source[eid])
+    for i, eid in enumerate(eids.tolist()):
         row, k = divmod(side[i], 4)
         curve_row = side_row(nets[row], k)
         if not whole[i]:

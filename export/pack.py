@@ -41,6 +41,8 @@ from OCP.gp import gp_Pnt, gp_Pnt2d
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from patching.bernstein import evaluate_nets
+from patching.util.blas import one_blas_thread
+from patching.util.vectors import cross3
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, edge_chains, find_blocks
@@ -49,7 +51,6 @@ from export.brep import (
     BrepError,
     bezier_surface,
     line_2d,
-    piece_lists,
     assemble,
     bound_face_pieces,
     bezier_curve,
@@ -78,9 +79,13 @@ def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
     w, h = block.rows.shape
     turned, grid = block_poles(block, nets)
     poles = TColgp_Array2OfPnt(1, 3 * w + 1, 1, 3 * h + 1)
-    for a, line in enumerate(grid.tolist()):
-        for b, (x, y, z) in enumerate(line):
-            poles.SetValue(a + 1, b + 1, gp_Pnt(x, y, z))
+    # ~1M poles on the pawn: one gp_Pnt set and copied in (SetValue copies), no lookups per pole
+    set_pole, point = poles.SetValue, gp_Pnt()
+    set_point = point.SetCoord
+    for a, line in enumerate(grid.tolist(), 1):
+        for b, (x, y, z) in enumerate(line, 1):
+            set_point(x, y, z)
+            set_pole(a, b, point)
     u, v = block.knots
 
     def knots(values):
@@ -124,7 +129,8 @@ def _bspline_grid(bspline: Geom_BSplineSurface, x: np.ndarray, y: np.ndarray) ->
     from scipy.interpolate import BSpline
 
     nu, nv = bspline.NbUPoles(), bspline.NbVPoles()
-    poles = np.array([[bspline.Pole(i, j).Coord() for j in range(1, nv + 1)] for i in range(1, nu + 1)])
+    pole = bspline.Pole
+    poles = np.array([[pole(i, j).Coord() for j in range(1, nv + 1)] for i in range(1, nu + 1)])
     tu = _flat_knots([bspline.UKnot(i) for i in range(1, bspline.NbUKnots() + 1)],
                      [bspline.UMultiplicity(i) for i in range(1, bspline.NbUKnots() + 1)])
     tv = _flat_knots([bspline.VKnot(i) for i in range(1, bspline.NbVKnots() + 1)],
@@ -149,6 +155,7 @@ class PackReport:
     blocks: tuple[tuple[Block, np.ndarray, np.ndarray], ...]
 
 
+@one_blas_thread  # thousands of small products (the per-block check): no spinning BLAS threads
 def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = True) -> tuple[TopoDS_Shape, PackReport]:
     """The B-rep of ``surface`` with regular blocks packed (module docstring): a solid when
     closed, else a shell, checked by ``BRepCheck_Analyzer`` unless ``check`` is False.
@@ -186,44 +193,23 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     vertices = make_vertices(builder, topo, nets, tol, used_vertices)
 
     # Each face's wire: (edge, reversed, pcurve start, pcurve end), the pcurve a segment in
-    # the face's (u, v) in the edge's own direction.
-    indptr, edge_of, reversed_, _, ranges = piece_lists(pieces)
-    corners = CORNER_PARAMETERS.tolist()
-    surfaces, wires = [], []
-    for plan in faces_plan:
-        wire = []
-        if plan[0] == "patch":
-            row = plan[1]
-            surfaces.append(bezier_surface(nets[row]))
-            cells = [(row, k, (0.0, 0.0), (1.0, 1.0), k) for k in range(4)]
-        else:
-            _, block, bspline, u, v = plan
-            surfaces.append(bspline)
-            # Side k of cell (i, j) in the block's (u, v); the patch's own side (k + t) mod 4
-            # runs the same way (a turn keeps the orientation), so its pieces' u0, u1 map
-            # linearly onto it: the B-spline on that span is the patch, SameParameter holds.
-            u_, v_, du, dv = u.tolist(), v.tolist(), block.du.tolist(), block.dv.tolist()
-            cells = [(r, (k + t) % 4, (u_[i], v_[j]), (du[i], dv[j]), k) for r, t, k, (i, j) in block_boundary(block, with_cell=True)]
-        for r, own, (ou, ov), (su, sv), k in cells:
-            (a0, a1), (b0, b1) = corners[k], corners[(k + 1) % 4]
-            for piece in range(indptr[4 * r + own], indptr[4 * r + own + 1]):
-                u0, u1 = ranges[piece][::-1] if reversed_[piece] else ranges[piece]
-                # side_point(k, w) = C_k + w (C_{k+1} - C_k), in plain floats (170k pieces on the pawn)
-                a = np.array([ou + su * (a0 + u0 * (b0 - a0)), ov + sv * (a1 + u0 * (b1 - a1))])
-                b = np.array([ou + su * (a0 + u1 * (b0 - a0)), ov + sv * (a1 + u1 * (b1 - a1))])
-                wire.append((edge_of[piece], reversed_[piece], a, b))
-        wires.append(wire)
+    # the face's (u, v) in the edge's own direction (``_wire_table``, all faces at once).
+    surfaces = [bezier_surface(nets[plan[1]]) if plan[0] == "patch" else plan[2] for plan in faces_plan]
+    face_of, edge_of, reversed_, start, end = _wire_table(faces_plan, pieces)
+    bounds = np.searchsorted(face_of, np.arange(len(faces_plan) + 1)).tolist()
+    entries = list(zip(edge_of.tolist(), reversed_.tolist(), start.tolist(), end.tolist()))
+    wires = [entries[bounds[f] : bounds[f + 1]] for f in range(len(faces_plan))]
 
     # Runs of edges between the same two faces become one multi-span edge (edge_chains).
     chains = edge_chains([[(e, r) for e, r, _, _ in w] for w in wires], {e: c[1:] for e, c in curves.items()},
-                         {e: len(c[0]) - 1 for e, c in curves.items()}, _turns(wires, curves))
+                         {e: len(c[0]) - 1 for e, c in curves.items()},
+                         _turns(face_of, edge_of, reversed_, start, end, curves))
     # A chain's knots: the lengths of its segments in the (u, v) of a face it bounds (the
     # knot intervals there, in which the joins of same-level patches are C2), scaled to [0, 1].
-    length: dict[int, float] = {}
-    for w in wires:  # the first face of the pair, for every edge of the chain alike
-        for e, _, a, b in w:
-            if e not in length:
-                length[e] = abs(b[0] - a[0]) + abs(b[1] - a[1])
+    # The first face of the pair, for every edge of the chain alike: each edge's first entry.
+    first_edges, first_at = np.unique(edge_of, return_index=True)
+    lengths = np.abs(end[first_at, 0] - start[first_at, 0]) + np.abs(end[first_at, 1] - start[first_at, 1])
+    length: dict[int, float] = dict(zip(first_edges.tolist(), lengths.tolist()))
     chain_of, chain_knots = {}, []
     edges = []
     for c, chain in enumerate(chains):
@@ -262,17 +248,60 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     return shape, PackReport(len(faces), len(blocks), int(in_block.sum()), len(nets), blocks)
 
 
-def _turns(wires, curves) -> set[int]:
+def _wire_table(faces_plan, pieces) -> tuple[np.ndarray, ...]:
+    """(face, edge, reversed, start (n, 2), end (n, 2)) of every wire entry of the faces, face
+    by face in wire order: side k of a lone patch, or the boundary sides k of a block's cells
+    (cell (i, j) at (u_i, v_j) with size (du_i, dv_j) in the block's (u, v)), each tiled by its
+    pieces; a piece on [u0, u1] of its side (in the side's direction, the range swapped when the
+    piece is reversed) runs from C_k + u0 (C_{k+1} - C_k) to C_k + u1 (C_{k+1} - C_k), scaled
+    into the cell.  The patch's own side (k + t) mod 4 of a block's cell turned by t runs the
+    same way as the block's side k (a turn keeps the orientation), so its pieces' u0, u1 map
+    linearly onto it: the B-spline on that span is the patch, SameParameter holds."""
+    cols = []  # per face: (row, own side, ou, ov, su, sv, k) of its cells, in wire order
+    for f, plan in enumerate(faces_plan):
+        if plan[0] == "patch":
+            cols.append(np.array([[f, plan[1], k, 0.0, 0.0, 1.0, 1.0, k] for k in range(4)]))
+        else:
+            _, block, _, u, v = plan
+            cells = list(block_boundary(block, with_cell=True))
+            ij = np.array([c[3] for c in cells], dtype=np.int64).reshape(-1, 2)
+            rtk = np.array([c[:3] for c in cells], dtype=np.int64).reshape(-1, 3)
+            cols.append(np.column_stack([np.full(len(cells), f), rtk[:, 0], (rtk[:, 2] + rtk[:, 1]) % 4,
+                                         u[ij[:, 0]], v[ij[:, 1]], block.du[ij[:, 0]], block.dv[ij[:, 1]], rtk[:, 2]]))
+    table = np.concatenate(cols) if cols else np.zeros((0, 8))
+    face, side, k = table[:, 0].astype(np.int64), (4 * table[:, 1] + table[:, 2]).astype(np.int64), table[:, 7].astype(np.int64)
+    origin, size = table[:, 3:5], table[:, 5:7]
+    indptr = np.asarray(pieces.indptr, dtype=np.int64)
+    count = indptr[side + 1] - indptr[side]
+    cell = np.repeat(np.arange(len(side)), count)
+    offset = np.cumsum(count) - count
+    piece = indptr[side][cell] + np.arange(cell.size) - offset[cell]
+    rev = np.asarray(pieces.reversed, dtype=bool)[piece]
+    ranges = np.asarray(pieces.range, dtype=np.float64)[piece]
+    ranges = np.where(rev[:, None], ranges[:, ::-1], ranges)
+    c0, c1 = CORNER_PARAMETERS[k[cell]], CORNER_PARAMETERS[(k[cell] + 1) % 4]
+    o, sz = origin[cell], size[cell]
+    # side_point(k, w) = C_k + w (C_{k+1} - C_k), then into the cell: in this order of
+    # operations (the pcurves are the ones the per-piece loop made, to the bit)
+    start = o + sz * (c0 + ranges[:, :1] * (c1 - c0))
+    end = o + sz * (c0 + ranges[:, 1:] * (c1 - c0))
+    return face[cell], np.asarray(pieces.edge, dtype=np.int64)[piece], rev, start, end
+
+
+def _turns(face, edge, rev, start, end, curves) -> set[int]:
     """Vertices where a face's wire turns: the segments of two consecutive wire entries (in
-    the face's (u, v)) are not parallel there."""
-    out = set()
-    for wire in wires:
-        for (e, rev, a, b), (_, rev2, a2, b2) in zip(wire, wire[1:] + wire[:1]):
-            d1 = a - b if rev else b - a
-            d2 = a2 - b2 if rev2 else b2 - a2
-            if abs(d1[0] * d2[1] - d1[1] * d2[0]) > 1e-9 * np.linalg.norm(d1) * np.linalg.norm(d2):
-                out.add(curves[e][1] if rev else curves[e][2])  # the vertex the entry ends at
-    return out
+    the face's (u, v)) are not parallel there.  Arguments: ``_wire_table``'s."""
+    if not face.size:
+        return set()
+    d = np.where(rev[:, None], start - end, end - start)
+    bounds = np.searchsorted(face, np.arange(face.max() + 2))
+    nxt = np.arange(face.size) + 1
+    nxt[bounds[1:][np.diff(bounds) > 0] - 1] = bounds[:-1][np.diff(bounds) > 0]  # the last entry: the face's first
+    d2 = d[nxt]
+    norm = np.sqrt(np.einsum("ij,ij->i", d, d)) * np.sqrt(np.einsum("ij,ij->i", d2, d2))
+    turn = np.abs(d[:, 0] * d2[:, 1] - d[:, 1] * d2[:, 0]) > 1e-9 * norm
+    # the vertex the entry ends at
+    return {curves[e][1] if r else curves[e][2] for e, r in zip(edge[turn].tolist(), rev[turn].tolist())}
 
 
 def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float) -> Geom_BSplineCurve:
@@ -363,7 +392,7 @@ def _signed_volumes(surface: BezierSurface) -> np.ndarray:
     out = []
     for g in surface.groups:
         p, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
-        out.append(np.einsum("m,kmc,kmc->k", w, p, np.cross(ds, dt)) / 3)
+        out.append(np.einsum("m,kmc,kmc->k", w, p, cross3(ds, dt)) / 3)
     return np.concatenate(out) if out else np.zeros(0)
 
 

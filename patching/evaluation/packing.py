@@ -169,14 +169,21 @@ def block_poles(block: Block, nets) -> tuple[np.ndarray, np.ndarray]:
     of multiplicity 3, knots ``block.knots``) whose spans are exactly those nets.
     nets: indexable by patch row, (4, 4, 3) each."""
     w, h = block.rows.shape
-    turned = np.empty((w, h, 4, 4, 3))
-    for i in range(w):
-        for j in range(h):
-            turned[i, j] = np.rot90(nets[block.rows[i, j]], -int(block.turns[i, j]), axes=(0, 1))
-    grid = np.empty((3 * w + 1, 3 * h + 1, 3))
-    for i in range(w):
-        for j in range(h):
-            grid[3 * i : 3 * i + 4, 3 * j : 3 * j + 4] = turned[i, j]
+    stack = np.stack([nets[r] for r in block.rows.ravel().tolist()])
+    turns = block.turns.ravel() % 4
+    turned = np.empty((w * h, 4, 4, 3))
+    for t in np.unique(turns).tolist():  # one rotation per distinct turn, not per patch
+        at = turns == t
+        turned[at] = np.rot90(stack[at], -t, axes=(1, 2))
+    turned = turned.reshape(w, h, 4, 4, 3)
+    # Pole (a, b) of the Bezier-form B-spline: entry (a - 3i, b - 3j) of net (i, j), the last
+    # net covering it (i = min(a // 3, w - 1)), as when the nets are written one after another.
+    def spans(n):
+        a = np.arange(3 * n + 1)
+        i = np.minimum(a // 3, n - 1)
+        return i, a - 3 * i
+    (i, p), (j, q) = spans(w), spans(h)
+    grid = turned[i[:, None], j[None, :], p[:, None], q[None, :]]
     return turned, grid
 
 

@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 from patching.util.graph import connected_components
+from patching.util.vectors import cross3
 
 from patching.bernstein import bernstein, evaluate_nets
 from patching.mesh.control_mesh import ControlMesh
@@ -49,7 +50,7 @@ def _grid_normals(nets: np.ndarray, samples: int):
     u = np.linspace(0.0, 1.0, samples)
     s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     p, ds, dt = evaluate_nets(nets, s, t, derivatives=True)
-    n = np.cross(ds, dt)
+    n = cross3(ds, dt)
     size = np.linalg.norm(n, axis=-1, keepdims=True)
     return p, n / np.maximum(size, 1e-300), size
 
