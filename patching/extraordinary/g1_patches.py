@@ -58,7 +58,8 @@ patches of tests/test_folds.py's EP-rich sphere (the face points take the correc
 overshoot), and 30 gives a prism cap function two maxima beside the EP; so the default stays 1
 (G_1 is exact for every weight).  ``benchmarks/blending_families.py`` compares them.
 
-Monotone spoke curves (ours, the default: ``MONOTONE_SPOKES``).  The tail maxima above are
+Monotone spoke curves (ours, the default: ``MONOTONE_SPOKES``, at rings of valence up to
+``MONOTONE_MAX_VALENCE``).  The tail maxima above are
 the blending function of one EP (the prism cap centre) read along a spoke of another (the
 valence-3 cap corner), where the extraction's spoke curve s, q, P30, P40, P50 of that function
 falls monotonely and the red solve bends it back.  After stage 1 (P00, s_i fixed) the black
@@ -102,7 +103,7 @@ from patching.topology.tables import Topology
 from patching.util.memo import batching, memo
 from patching.util.solve_cache import lookup, lookup_many
 
-__all__ = ["Q_WEIGHT", "MONOTONE_SPOKES", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
+__all__ = ["Q_WEIGHT", "MONOTONE_SPOKES", "MONOTONE_MAX_VALENCE", "EPGroup", "ep_groups", "local_index", "LOCAL_OFFSET", "G1Assembly", "RowMixer", "blue_weights", "cache_key"]
 
 QUINTIC = 5
 #: Weight of the spoke-curve points q_i = P^i[2,0] against the face points f_i = P^i[1,1] in
@@ -113,6 +114,10 @@ Q_WEIGHT = 1.0
 #: least change would make them dip and rise (``_monotone_red``; module docstring, "monotone
 #: spoke curves").  False: the plain least change everywhere (for comparisons).
 MONOTONE_SPOKES = True
+#: The monotone step's QP has 6 n^2 unknowns and its change space an SVD of ~3 n^2 x 6 n^2
+#: (``_change_space``): 0.2 s at valence 12, ~n^6 beyond (hours at the valence-64 poles of
+#: tests/test_sharp_features.py).  Rings of higher valence keep the plain red operator.
+MONOTONE_MAX_VALENCE = 12
 #: ``_monotone_red``: ridge on the change of the weights themselves (relative to the functions'
 #: Gram matrix), and the largest change of a weight it accepts (else the default stays).
 RIDGE = 1e-6
@@ -805,7 +810,7 @@ class G1Assembly:
                 tgt += [self.rows(g, ii, 1, 0), self.rows(g, ii - 1, 0, 1), self.rows(g, ii, 2, 0), self.rows(g, ii - 1, 0, 2)]
                 unknown += [1 + ii, 1 + ii, 1 + 2 * n + ii, 1 + 2 * n + ii]
             ops_e = ops[inverse]
-            if MONOTONE_SPOKES and self.reference is not None and g.gap < 0:
+            if MONOTONE_SPOKES and n <= MONOTONE_MAX_VALENCE and self.reference is not None and g.gap < 0:
                 ops_e = self._monotone(g, ops_e, src, uniq, inverse, pinned, skip)
             weights = ops_e[:, unknown, :]  # (E, T, S)
             mixer.set(np.stack(tgt, 1), src, weights)
