@@ -436,22 +436,26 @@ def _stage1_structure(n: int, pinned: tuple, gap: int):
     return n1, free, np.vstack(diffs), hold, put
 
 
+def _spoke_slots(n: int, i: int) -> dict[int, int]:
+    """Slot of spoke i's G_0/G_1 equations -> red unknown in x = [P00, s_0..s_{n-1},
+    f_0..f_{n-1}, q_0..q_{n-1}]: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1},
+    A[1,1] = f_i; B[1,0] = s_{i-1}, B[1,1] = f_{i-1}."""
+    s = lambda j: 1 + (j % n)  # noqa: E731
+    f = lambda j: 1 + n + (j % n)  # noqa: E731
+    return {r_slot(0): 0, r_slot(1): s(i), r_slot(2): 1 + 2 * n + (i % n), a_slot(0): s(i + 1),
+            a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
+
+
 def _red_rows(n: int, key: tuple, skip: tuple) -> dict[int, list[np.ndarray]]:
     """G_0 (rows[0]) and G_1 (rows[1]) of every spoke not in ``skip`` as rows over the red
     unknowns x = [P00, s_0..s_{n-1}, f_0..f_{n-1}, q_0..q_{n-1}] (``_red_solve``)."""
     size = 1 + 3 * n
-    s = lambda i: 1 + (i % n)  # noqa: E731
-    f = lambda i: 1 + n + (i % n)  # noqa: E731
-    q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
     rows: dict[int, list[np.ndarray]] = {0: [], 1: []}
     for i, (aa, ab, b0, b1) in enumerate(key):
         if skip[i]:
             continue
         g = spoke_equations(aa, ab, b0, b1)
-        # slot -> unknown: r0 = P00, r1 = s_i, r2 = q_i; A[0,1] = s_{i+1}, A[1,1] = f_i;
-        # B[1,0] = s_{i-1}, B[1,1] = f_{i-1}.
-        slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
-                     a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
+        slot_to_x = _spoke_slots(n, i)
         for k in (0, 1):
             row = np.zeros(size)
             for slot, col in slot_to_x.items():
@@ -658,15 +662,13 @@ def _red_solve_batch(
     if not live or not keys:
         return np.array([_red_solve(n, key, pinned, gap, skip, q_weight) for key in keys]).reshape(len(keys), size, size)
     s = lambda i: 1 + (i % n)  # noqa: E731
-    f = lambda i: 1 + n + (i % n)  # noqa: E731
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
     g_count = len(keys)
     spokes = np.array([[np.nan if x is None else x for x in spoke] for key in keys for spoke in key], dtype=np.float64)
     eqs = spoke_equations_batch(*spokes.T).reshape(g_count, n, 6, -1)
     rows = np.zeros((2, g_count, len(live), size))  # G_0 and G_1 rows of the constrained spokes
     for r, i in enumerate(live):
-        slot_to_x = {r_slot(0): 0, r_slot(1): s(i), r_slot(2): q(i), a_slot(0): s(i + 1),
-                     a_slot(1): f(i), b_slot(0): s(i - 1), b_slot(1): f(i - 1)}
+        slot_to_x = _spoke_slots(n, i)
         outside = np.delete(eqs[:, i, :2], list(slot_to_x), axis=-1)
         assert np.allclose(outside, 0.0), "G_0, G_1 reach beyond the red slots"
         for slot, col in slot_to_x.items():
@@ -692,7 +694,7 @@ def _red_solve_batch(
     stage1[:, :n1, :n1] = k1
     stage1[:, n1:, n1:] = np.eye(n)
     c = rows[1]
-    y = np.array([f(i) for i in range(n) if i != gap] + [q(i) for i in range(n) if not pinned[i]])
+    y = _stage2_unknowns(n, pinned, gap)
     cy = c[:, :, y]
     target = stage1.copy()
     for i in range(n):
