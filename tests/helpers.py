@@ -8,6 +8,7 @@ import itertools
 import sys
 
 import numpy as np
+import scipy.sparse as sp
 from OCP.Bnd import Bnd_Box
 
 from export.ocp_compat import box_bounds
@@ -644,16 +645,14 @@ def reference_matrix(
     groups = ep_groups(topo, eps, feats)
     anchor_rows = np.zeros((ext.n_anchors, n))
     if quintic:
-        import scipy.sparse as sp
-
         g1 = G1Assembly(topo, groups, face_row, angles)
-        # the blending functions before the G1 steps, which the monotone-spoke step reads
-        # (``G1Assembly.reference``): the elevated rows with the anchors' rows folded in
         rule = "eigen-polyhedron" if anchors == "faired" else anchors
         smooth_groups = [g for g in groups if g.theta is None]
-        first_anchor_rows = anchor_matrix(topo, smooth_groups, ext.anchor_column, n, rule=rule).toarray()
-        first_anchor_rows += _sector_anchors(topo, feats, groups, ext.anchor_column, n).toarray()
-        initial = rows[:, :n] + rows[:, n:] @ first_anchor_rows
+        anchor_rows = anchor_matrix(topo, smooth_groups, ext.anchor_column, n, rule=rule).toarray()
+        anchor_rows += _sector_anchors(topo, feats, groups, ext.anchor_column, n).toarray()
+        # the blending functions before the G1 steps, which the monotone-spoke step reads
+        # (``G1Assembly.reference``): the elevated rows with the anchors' rows folded in
+        initial = rows[:, :n] + rows[:, n:] @ anchor_rows
         g1.reference = lambda r: sp.csr_matrix(initial[np.asarray(r)])
         for step in [getattr(g1, name) for name in g1_steps] + ([g1.blue] if interior == "cubic-isocurves" else []):
             mixer = RowMixer(rows.shape[0])
@@ -666,15 +665,9 @@ def reference_matrix(
                     for t in range(targets.shape[1]):
                         new[targets[e, t]] += weights[e, t] @ rows[sources[e]]
             rows = new
-        rule = "eigen-polyhedron" if anchors == "faired" else anchors
-        smooth_groups = [g for g in groups if g.theta is None]
-        anchor_rows = anchor_matrix(topo, smooth_groups, ext.anchor_column, n, rule=rule).toarray()
-        anchor_rows += _sector_anchors(topo, feats, groups, ext.anchor_column, n).toarray()
     blocks = [nets[16 * f : 16 * f + 16] for f in cubic] + [rows[face_row[f] : face_row[f] + 36] for f in quintic]
     stacked = np.vstack(blocks)
     if anchors == "faired" and ext.n_anchors:
-        import scipy.sparse as sp
-
         degrees = np.array([3] * len(cubic) + [5] * len(quintic))
         sets = [ext.anchor_column[g.h[e]] - n for g in groups if g.theta is None for e in range(len(g.vertices))]
         faired = faired_anchors(sp.csr_matrix(stacked), n, sp.csr_matrix(anchor_rows), sets, degrees, spans[cubic + quintic])
