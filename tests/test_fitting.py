@@ -156,7 +156,9 @@ def test_foot_points_are_nearest_points():
     u = np.linspace(0.0, 1.0, 201)
     s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
     dense = np.concatenate([evaluate(layout, coefficients, np.full(s.size, p), s, t) for p in range(layout.n_patches)])
-    brute = np.min(np.linalg.norm(dense[None, :, :] - x[:, None, :], axis=2), axis=1)
+    from scipy.spatial import cKDTree
+
+    brute, _ = cKDTree(dense).query(x)  # exact nearest grid point (a 60 x 970k distance table took 1.4 GB)
     on = evaluate(layout, coefficients, feet.patch, feet.s, feet.t)
     np.testing.assert_allclose(np.linalg.norm(on - x, axis=1), feet.distance, rtol=0, atol=1e-12)
     assert np.all(feet.distance <= brute + 1e-12)
