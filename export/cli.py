@@ -569,7 +569,8 @@ def _import_frozen(*modules: str) -> None:
     Only for a process that is ``nupatch`` itself (``main(None)``).  OCP is one extension
     module of thousands of classes: importing it makes ~200,000 objects that live as long as
     the process, and every full collection walks all of them (0.08 s of CPU each on the
-    2-core machine): the three that its own import triggers, and the interpreter's at exit.
+    2-core machine): two that its import's allocations trigger, one the build's, and the
+    interpreter's at exit.
     Frozen, a small build's whole process takes ~0.6 s less CPU (docs/speed.md).  A frozen
     object is still freed when its last reference goes; the collector just never looks at it
     again, and garbage cycles that the build itself makes are still collected."""
