@@ -89,17 +89,17 @@ def shape_tolerance(surface: BezierSurface) -> float:
 def bezier_surface(net: np.ndarray) -> Geom_BezierSurface:
     n = net.shape[0]
     poles = TColgp_Array2OfPnt(1, n, 1, n)
-    for i in range(n):
-        for j in range(n):
-            x, y, z = net[i, j]
-            poles.SetValue(i + 1, j + 1, gp_Pnt(float(x), float(y), float(z)))
+    # tolist: Python floats in one call (the same values as float() of each numpy scalar)
+    for i, row in enumerate(np.asarray(net, dtype=np.float64).tolist(), 1):
+        for j, (x, y, z) in enumerate(row, 1):
+            poles.SetValue(i, j, gp_Pnt(x, y, z))
     return Geom_BezierSurface(poles)
 
 
 def bezier_curve(row: np.ndarray) -> Geom_BezierCurve:
     poles = TColgp_Array1OfPnt(1, len(row))
-    for i, (x, y, z) in enumerate(row):
-        poles.SetValue(i + 1, gp_Pnt(float(x), float(y), float(z)))
+    for i, (x, y, z) in enumerate(np.asarray(row, dtype=np.float64).tolist(), 1):
+        poles.SetValue(i, gp_Pnt(x, y, z))
     return Geom_BezierCurve(poles)
 
 

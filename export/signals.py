@@ -31,8 +31,10 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
+
+if TYPE_CHECKING:  # imported by worker_pool: multiprocessing is ~4 ms of every start
+    from concurrent.futures import ProcessPoolExecutor
 
 from export.atomic import live_temporaries
 
@@ -134,6 +136,8 @@ def _worker_init(parent: int) -> None:
 def worker_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     """A ProcessPoolExecutor whose workers handle signals like ``nupatch`` and die with it;
     leaving the block by an exception (Ctrl-C, SIGTERM) terminates them rather than waiting."""
+    from concurrent.futures import ProcessPoolExecutor
+
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init, initargs=(os.getpid(),))
     try:
         yield pool

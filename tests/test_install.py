@@ -119,9 +119,11 @@ def _without_ocp(code: str) -> str:
     )
 
 
-def test_without_opencascade_nupatch_exits_2_naming_the_extra(tmp_path):
+@pytest.mark.parametrize("call", ["main(ARGS)", "main()"])  # in an interpreter; as the process (OCP imported frozen)
+def test_without_opencascade_nupatch_exits_2_naming_the_extra(tmp_path, call):
     out = tmp_path / "a.step"
-    code = _without_ocp(f"from export.cli import main\nsys.exit(main(['build', {str(REPO / 'models' / 'clamped_grid.obj')!r}, '-o', {str(out)!r}]))\n")
+    args = ["build", str(REPO / "models" / "clamped_grid.obj"), "-o", str(out)]
+    code = _without_ocp(f"from export.cli import main\nARGS = {args!r}\nsys.argv[1:] = ARGS\nsys.exit({call})\n")
     result = run(["-c", code], text=True)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()

@@ -6,6 +6,7 @@ write nothing), and the imports a build does not need stay out of ``nupatch``'s 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -188,17 +189,67 @@ def test_cli_cache_switches(tmp_path, run_cli, monkeypatch):
 
 def test_build_start_imports_only_what_it_needs():
     """Parsing ``nupatch build``'s command line and importing the build path loads no
-    scipy.optimize / interpolate / csgraph / linalg and no Loop or shading modules."""
+    scipy.optimize / interpolate / csgraph / linalg, no Loop or shading modules, and not
+    multiprocessing (only ``-j``'s worker pool needs it)."""
     code = (
-        "import sys, export.cli, export.pipeline, export.brep, export.step, export.formats, export.inputs\n"
+        "import sys, export.cli, export.pipeline, export.brep, export.step, export.formats, export.inputs, export.signals\n"
         "export.cli._parser()\n"
         "bad = [m for m in ('scipy.optimize', 'scipy.interpolate', 'scipy.sparse.csgraph', 'scipy.linalg',"
-        " 'patching.loop', 'patching.shading') if m in sys.modules]\n"
+        " 'patching.loop', 'patching.shading', 'multiprocessing', 'concurrent.futures.process') if m in sys.modules]\n"
         "print(' '.join(bad))\n"
     )
     env = dict(os.environ, PYTHONPATH=str(REPO))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+#: A whole ``nupatch build`` process (``main()`` on its own command line, as the console script
+#: runs it), then what it left: modules it should not have loaded, whether the collector is on,
+#: how many objects were frozen and how many are still tracked.
+_WHOLE_BUILD = (
+    "import gc, sys, export.cli\n"
+    "walked = []  # full collections that walked OpenCASCADE's objects (OCP loaded, nothing frozen)\n"
+    "gc.callbacks.append(lambda phase, info: walked.append(1) if phase == 'start' and info['generation'] == 2"
+    " and 'OCP' in sys.modules and not gc.get_freeze_count() else None)\n"
+    "sys.argv = ['nupatch', 'build', *sys.argv[1:]]\n"
+    "code = export.cli.main()\n"
+    "bad = [m for m in ('tqdm', 'multiprocessing') if m in sys.modules]\n"
+    "print(code, gc.isenabled(), len(walked), gc.get_freeze_count(), len(gc.get_objects()), *bad)\n"
+)
+
+
+def _strip_time_stamp(path: Path) -> str:
+    text = path.read_text()
+    return re.sub(r"FILE_NAME\(.*?\);", "", text, count=1, flags=re.DOTALL)
+
+
+def test_whole_build_process_freezes_its_heap_and_writes_the_same_step(tmp_path, cli_main):
+    """``nupatch build`` as its own process imports OpenCASCADE with the collector off and
+    freezes the heap (``export.cli._import_frozen``): the STEP of l_bracket, first build and
+    cached build, is the file a build in this interpreter writes (which freezes nothing),
+    time stamp aside; -q loads no tqdm, a single build no multiprocessing."""
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUPATCH_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("NUPATCH_NO_CACHE", None)
+    outs = []
+    for name in ("first", "cached"):
+        out = tmp_path / f"{name}.step"
+        run = subprocess.run([sys.executable, "-c", _WHOLE_BUILD, str(L_BRACKET), "-o", str(out), "-q"],
+                             env=env, capture_output=True, text=True, check=True, cwd=tmp_path)
+        code, enabled, walked, frozen, tracked, *bad = run.stdout.split()
+        assert (code, enabled, walked, bad) == ("0", "True", "0", [])
+        assert int(frozen) > 50_000 and int(tracked) < 1_000  # OCP's objects frozen, the rest at the end
+        outs.append(out)
+    assert any((tmp_path / "cache").rglob("*"))  # the second build read what the first wrote
+    import gc
+
+    frozen_before = gc.get_freeze_count()
+    here = tmp_path / "here.step"
+    assert cli_main("build", L_BRACKET, "-o", here, "-q", "--no-cache").returncode == 0
+    assert gc.get_freeze_count() == frozen_before and gc.isenabled()  # main(argv) leaves gc alone
+    reference = _strip_time_stamp(here)
+    assert len(reference) > 100_000
+    for out in outs:
+        assert _strip_time_stamp(out) == reference
 
 
 def _format_obj_line_by_line(mesh, comment=""):
