@@ -2,12 +2,16 @@
 in its dual form, in lockstep) against the step as first shipped (``tests.helpers``'s
 ``monotone_red_primal``: an explicit basis of the changes and the primal active set, ring by
 ring), ring by ring against the batch bit for bit, and through the solve caches: a cached step
-is the fresh one to the bit, a damaged entry is solved again, and the step is not skipped."""
+is the fresh one to the bit, a damaged entry is solved again, and the step is not skipped;
+and the dense blocks of the functions each ring reaches (``_ring_blocks``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import patching
 from patching.extraordinary import g1_patches
@@ -164,3 +168,31 @@ def test_a_damaged_monotone_entry_is_solved_again(damage):
     again = _build(mesh, store)
     assert (again != fresh).nnz == 0
     assert store.entries == good
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 7), st.integers(1, 5), st.integers(1, 40), st.integers(0, 2**31 - 1), st.integers(1, 4))
+def test_ring_blocks_are_the_rows_over_the_columns_each_ring_reaches(rings, per, width, seed, table):
+    """``_ring_blocks`` (a table numbers each ring's columns, a few rings at a time) against
+    the dense rows: every ring's columns once, its block equal to its rows there, zero padding;
+    duplicate entries summed, as the sparse matrix means them."""
+    rng = np.random.default_rng(seed)
+    dense = np.where(rng.random((rings * per, width)) < 0.3, rng.standard_normal((rings * per, width)), 0.0)
+    coo = sp.coo_matrix(dense)
+    half = coo.nnz // 2  # split some entries in two: the same matrix with duplicates
+    rows = np.concatenate([coo.row, coo.row[:half]])
+    cols = np.concatenate([coo.col, coo.col[:half]])
+    data = np.concatenate([coo.data - np.r_[coo.data[:half] / 2, np.zeros(coo.nnz - half)], coo.data[:half] / 2])
+    ref = sp.csr_matrix((data, (rows, cols)), shape=dense.shape)
+    saved, g1_patches.RING_TABLE = g1_patches.RING_TABLE, table
+    try:
+        x, columns = g1_patches._ring_blocks(ref, rings, per)
+    finally:
+        g1_patches.RING_TABLE = saved
+    for e in range(rings):
+        block = dense[e * per : (e + 1) * per]
+        reached = np.flatnonzero(np.abs(sp.csr_matrix(block)).sum(axis=0).A1 > 0)
+        mine = columns[e][columns[e] >= 0]
+        assert sorted(mine.tolist()) == sorted(set(mine.tolist())) and set(mine.tolist()) >= set(reached.tolist())
+        np.testing.assert_allclose(x[e][:, : mine.size], block[:, mine], rtol=1e-15, atol=0)
+        assert not x[e][:, mine.size :].any()

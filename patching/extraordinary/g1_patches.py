@@ -679,17 +679,15 @@ def _monotone_red(
     gram = x @ np.swapaxes(x, 1, 2)
     gram += (RIDGE * np.trace(gram, axis1=1, axis2=2) / size + 1e-300)[:, None, None] * np.eye(size)
     xw = np.take_along_axis(x, cols[:, None, :], axis=2) * col_ok[:, None, :]
-    # G^-1 of the watched functions and of 1 in one solve.  LAPACK's result for a column
-    # depends on how many it solves at once, so the width is the batch's (``width``: a caller
-    # solving one ring of a batch passes the batch's), and q below is summed in one fixed
-    # order: a ring's numbers are the same in a batch of one.
+    # G^-1 of the watched functions and of 1 in one solve.  LAPACK's and BLAS's results for a
+    # column depend on how many columns they take at once, so the width is the batch's
+    # (``width``: a caller solving one ring of a batch passes the batch's): a ring's numbers
+    # are then the same in a batch of one.
     solved = np.linalg.solve(gram, np.concatenate([xw, np.ones((e_count, size, 1))], axis=2))
     g_x = solved[:, :, :-1]
     g_one = solved[:, :, -1:]
     s2x = g_x - g_one * (g_x.sum(axis=1, keepdims=True) / g_one.sum(axis=1, keepdims=True))
-    q = np.zeros((e_count, width, width))  # x_c^T S2 x_c', summed over the inputs in order
-    for i in range(size):
-        q += xw[:, i, :, None] * s2x[:, i, None, :]
+    q = np.swapaxes(xw, 1, 2) @ s2x  # (E, width, width): x_c^T S2 x_c'
     valid = np.zeros((e_count, m), dtype=bool)
     valid[be, bk] = True
     b_row = np.zeros((e_count, m), dtype=np.int64)
@@ -955,28 +953,48 @@ def blue_weights() -> np.ndarray:
     return out
 
 
+#: ``_ring_blocks`` numbers each ring's columns in a (rings x columns) table of this many rings
+#: at a time (a few MB, reused).
+RING_TABLE = 256
+
+
 def _ring_blocks(ref: sp.csr_matrix, e_count: int, per: int) -> tuple[np.ndarray, np.ndarray]:
     """The rows of ``ref`` (e_count rings of ``per`` consecutive rows) as dense blocks over
     the columns each ring reaches: (x (e_count, per, W), columns (e_count, W)), ring e's
-    columns ascending, then -1 (zero columns of x) up to the widest ring's W.  ``ref`` is
-    put in canonical form (in place)."""
+    columns in the order of their last entry in its rows, then -1 (zero columns of x) up to
+    the widest ring's W.  ``ref`` is put in canonical form (in place).  No sort: each ring's
+    columns are numbered through a table indexed by (ring, column), filled for a few hundred
+    rings at a time (an entry's number is written before it is read, so the table is never
+    cleared)."""
     ref.sum_duplicates()  # one entry per (row, column), so x is written, not accumulated
     counts = np.diff(ref.indptr)
+    wide = ref.shape[1]
+    ring_ptr = ref.indptr[:: per] if ref.shape[0] else np.zeros(1, dtype=np.int64)
+    table = np.empty(min(RING_TABLE, max(e_count, 1)) * wide, dtype=np.int64)
     ring = np.repeat(np.arange(ref.shape[0]) // per, counts)
-    row = np.repeat(np.arange(ref.shape[0]) % per, counts)
-    ring_ptr = np.concatenate([[0], np.cumsum(counts.reshape(e_count, per).sum(axis=1))])
-    reach = sp.csr_matrix((np.ones(ref.nnz), ref.indices.copy(), ring_ptr), shape=(e_count, ref.shape[1]))
-    reach.sum_duplicates()  # each ring's columns once, ascending
-    per_ring = np.diff(reach.indptr)
-    width = int(per_ring.max(initial=0))
-    owner = np.repeat(np.arange(e_count, dtype=np.int64), per_ring)
-    slot = np.arange(reach.nnz) - reach.indptr[owner]
+    slot = np.empty(ref.nnz, dtype=np.int64)
+    owners, slots, cols = [], [], []
+    for first in range(0, e_count, RING_TABLE):
+        last = min(first + RING_TABLE, e_count)
+        span = slice(int(ring_ptr[first]), int(ring_ptr[last]))
+        key = (ring[span] - first) * wide + ref.indices[span]
+        order = np.arange(key.size)
+        table[key] = order
+        own = table[key] == order  # one entry of each (ring, column): its last
+        ring_own = ring[span][own]
+        number = np.arange(ring_own.size) - np.searchsorted(ring_own, ring_own)
+        table[key[own]] = number
+        slot[span] = table[key]
+        owners.append(ring_own)
+        slots.append(number)
+        cols.append(ref.indices[span][own])
+    owner = np.concatenate(owners) if owners else np.zeros(0, dtype=np.int64)
+    number = np.concatenate(slots) if slots else np.zeros(0, dtype=np.int64)
+    width = int(number.max(initial=-1)) + 1
     columns = np.full((e_count, width), -1, dtype=np.int64)
-    columns[owner, slot] = reach.indices
-    wide = np.int64(ref.shape[1])
-    at = np.searchsorted(owner * wide + reach.indices, ring * wide + ref.indices) - reach.indptr[ring]
+    columns[owner, number] = np.concatenate(cols) if cols else number
     x = np.zeros((e_count, per, width))
-    x[ring, row, at] = ref.data
+    x[ring, np.repeat(np.arange(ref.shape[0]) % per, counts), slot] = ref.data
     return x, columns
 
 
