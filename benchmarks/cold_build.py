@@ -3,9 +3,10 @@ warm), without the on-disk cache of solved local configurations and with it (fil
 warm-up round), alternated in one run; optionally a second checkout (``--before DIR``) in the
 same rotation, also without and with the cache.  The mesh is ``benchmarks/build.py``'s "coarse" one: an icosphere's triangles
 split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
-drawn from {1, 2, 5} per strip.  Each child prints the wall and CPU seconds of the build alone
+drawn from {1, 2, 5} per strip.  ``--plain`` adds this tree without the monotone spoke step
+(``g1_patches.MONOTONE_SPOKES = False``, the red solve before issue 19).  Each child prints the wall and CPU seconds of the build alone
 (the mesh read and the imports excluded).  Run by hand:
-``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR]``.
+``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR] [--plain]``.
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ CHILD = r"""
 import json, sys, time
 import patching
 mesh = patching.read_mesh(sys.argv[1])
+if len(sys.argv) > 3 and sys.argv[3] == "plain":  # the red solve without the monotone spoke step
+    from patching.extraordinary import g1_patches
+    g1_patches.MONOTONE_SPOKES = False
 if sys.argv[2] == "cache":
     from export.solve_cache import using_disk_cache
     context = using_disk_cache()
@@ -46,6 +50,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without and with the cache")
+    parser.add_argument("--plain", action="store_true",
+                        help="also this tree without the monotone spoke step (g1_patches.MONOTONE_SPOKES = False), without and with the cache")
     args = parser.parse_args()
 
     from build import ep_mesh
@@ -53,6 +59,9 @@ def main() -> None:
 
     mesh = ep_mesh("coarse")
     sides = {"no cache": (str(ROOT), "none"), "cache": (str(ROOT), "cache")}
+    if args.plain:
+        sides["plain"] = (str(ROOT), "none", "plain")
+        sides["plain cache"] = (str(ROOT), "cache", "plain")
     if args.before:
         sides["before"] = (str(Path(args.before).resolve()), "none")
         sides["before cache"] = (str(Path(args.before).resolve()), "cache")  # its own entries (another source digest)
@@ -61,10 +70,10 @@ def main() -> None:
         obj = Path(tmp) / "coarse.obj"
         write_obj(mesh, obj)
         for run in range(args.runs + 1):  # the first round fills the cache and the .pyc files
-            for name, (tree, mode) in sides.items():
+            for name, (tree, mode, *plain) in sides.items():
                 env = dict(os.environ, PYTHONPATH=tree, NUPATCH_CACHE_DIR=str(Path(tmp) / "cache"))
                 env.pop("PYTHONDONTWRITEBYTECODE", None)
-                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode], env=env, check=True,  # cwd: not a checkout
+                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode, *plain], env=env, check=True,  # cwd: not a checkout
                                      capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
                 if run:
                     times[name].append(json.loads(out.strip().splitlines()[-1]))

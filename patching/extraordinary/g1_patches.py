@@ -89,6 +89,8 @@ rule along its row and along its column: P[p,q] = 1/2 f_q(P[p,0], P[p,1], P[p,4]
 from __future__ import annotations
 
 import copy
+import hashlib
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -114,9 +116,11 @@ Q_WEIGHT = 1.0
 #: least change would make them dip and rise (``_monotone_red``; module docstring, "monotone
 #: spoke curves").  False: the plain least change everywhere (for comparisons).
 MONOTONE_SPOKES = True
-#: The monotone step's QP has 6 n^2 unknowns and its change space an SVD of ~3 n^2 x 6 n^2
-#: (``_change_space``): 0.2 s at valence 12, ~n^6 beyond (hours at the valence-64 poles of
-#: tests/test_sharp_features.py).  Rings of higher valence keep the plain red operator.
+#: The monotone step runs at rings of valence up to this; the others keep the plain red
+#: operator.  Set when the monotone step built a
+#: basis of its changes (an SVD of ~3 n^2 x 6 n^2: 0.2 s at valence 12, ~n^6 beyond, hours at
+#: the valence-64 poles of tests/test_sharp_features.py); ``_monotone_red`` no longer needs
+#: one, but the cap stays where it was, so the operator of every mesh stays the same.
 MONOTONE_MAX_VALENCE = 12
 #: ``_monotone_red``: ridge on the change of the weights themselves (relative to the functions'
 #: Gram matrix), and the largest change of a weight it accepts (else the default stays).
@@ -465,123 +469,352 @@ def _red_rows(n: int, key: tuple, skip: tuple) -> dict[int, list[np.ndarray]]:
     return rows
 
 
+def _red_rows_batch(n: int, spokes: np.ndarray, live: list[int]) -> np.ndarray:
+    """``_red_rows`` of g configurations at once: spokes (g, n, 4) = (alpha_a, alpha_b, b0, b1)
+    per spoke (b1 NaN for a regular far end) -> (2, g, len(live), 1 + 3n), G_0 and G_1 of the
+    spokes ``live`` (the constrained ones), by the same operations as ``_red_rows``."""
+    g_count = spokes.shape[0]
+    eqs = spoke_equations_batch(*spokes.reshape(-1, 4).T).reshape(g_count, n, 6, -1)
+    rows = np.zeros((2, g_count, len(live), 1 + 3 * n))
+    for r, i in enumerate(live):
+        slot_to_x = _spoke_slots(n, i)
+        outside = np.delete(eqs[:, i, :2], list(slot_to_x), axis=-1)
+        assert np.allclose(outside, 0.0), "G_0, G_1 reach beyond the red slots"
+        for slot, col in slot_to_x.items():
+            rows[:, :, r, col] += np.moveaxis(eqs[:, i, :2, slot], 1, 0)
+    return rows
+
+
 def _stage2_unknowns(n: int, pinned: tuple, gap: int) -> np.ndarray:
     """Indices into x of stage 2's unknowns y = [f (present patches), q (spokes not pinned)]."""
     return np.array([1 + n + i for i in range(n) if i != gap] + [1 + 2 * n + i for i in range(n) if not pinned[i]])
 
 
-def _bounded_least_change(metric: np.ndarray, bmat: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
-    """argmin z^T metric z subject to lo <= bmat z <= hi (metric SPD), or None where z = 0
-    already satisfies it or no feasible point is found.
+#: ``_active_set_batch`` looks for problems that cycle (and would run into the step limit)
+#: from this step on; most stop within a dozen steps (on the half-EP mesh 10 of 2,364 rings of
+#: valence 6 cycled, and ran 290 steps each before this).
+CYCLE_CHECK_AFTER = 16
+
+
+def _active_set_batch(
+    gram: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, valid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """argmin z^T A z subject to lo <= B z <= hi (A SPD) for E problems at once, in the dual:
+    (ok (E,), order (E, K), mu (E, K)), z = A^-1 B^T mu over the active bounds ``order`` (-1:
+    none) where ok; not ok where z = 0 already satisfies the bounds or no feasible point is
+    found.
+
+    ``gram(e, a, b)``: entries [a, b] of problem e's H = B A^-1 B^T (e (L,), a (L, I), b (L, J)
+    -> (L, I, J)); lo, hi (E, m); valid (E, m) (bounds past a problem's own count are padding).
 
     A simplified form of [GI83]'s dual active-set method (full steps: no partial step when a
-    multiplier changes sign): z = 0 is the unconstrained minimum; the most violated bound joins
-    the active set (as an equality), the equality problem is solved exactly
-    (z = A^-1 G^T (G A^-1 G^T)^-1 r), and an active bound whose multiplier has the wrong sign
-    (the solution would rather leave it) is dropped; it stops when no bound is violated, so a
-    returned z always satisfies every bound (it may not be the exact minimiser).  A few dozen bounds, so a few dozen small solves; SciPy's SLSQP
-    took about 40 ms a ring here, this about 1 ms.  Falls back to None after 4 m steps."""
-    tol = 1e-12 * max(1.0, float(np.abs(np.concatenate([lo, hi])).max()))
-    if np.all(lo <= tol) and np.all(hi >= -tol):
-        return None
-    a_inv = np.linalg.inv(metric)
-    active: dict[int, bool] = {}  # bound -> True: at lo (bmat z >= lo), False: at hi
-    z = np.zeros(metric.shape[0])
-    for _ in range(4 * bmat.shape[0] + 4):
-        value = bmat @ z
-        excess = np.maximum(lo - value, value - hi)
-        excess[list(active)] = -np.inf
-        j = int(np.argmax(excess))
-        if excess[j] <= tol:
-            return z
-        active[j] = bool(lo[j] - value[j] > value[j] - hi[j])
-        while True:
-            idx = list(active)
-            g = bmat[idx]
-            r = np.where([active[i] for i in idx], lo[idx], hi[idx])
-            schur = g @ a_inv @ g.T
-            mu = np.linalg.lstsq(schur, r, rcond=1e-13)[0]
-            wrong = [k for k, i in enumerate(idx) if (mu[k] < 0) == active[i] and abs(mu[k]) > 1e-14 * max(1.0, np.abs(mu).max())]
-            if not wrong or len(idx) == 1:
+    multiplier changes sign), in terms of H alone (B z = H[:, active] mu): z = 0 is the
+    unconstrained minimum; the most violated bound joins the active set (as an equality); the
+    equality problem is solved for the active multipliers (least squares, cut-off 1e-13 of the
+    largest singular value: ``np.linalg.pinv``), and an active bound whose multiplier has the
+    wrong sign (the solution would rather leave it; the largest first) is dropped; a problem
+    stops when no bound is violated (so a returned z satisfies every bound, though it may not
+    be the exact minimiser), when the active bounds cannot all hold, or after 4 m + 4 steps
+    (as does one whose active set repeats: ``CYCLE_CHECK_AFTER``).  All problems step in
+    lockstep, the solves grouped by the active set's size, so that each matrix is factored
+    alone and a problem's numbers do not depend on the others in its batch."""
+    e_count, m = lo.shape
+    lo = np.where(valid, lo, -np.inf)
+    hi = np.where(valid, hi, np.inf)
+    tol = 1e-12 * np.maximum(1.0, np.where(valid, np.maximum(np.abs(lo), np.abs(hi)), 0.0).max(axis=1, initial=0.0))
+    ok = np.zeros(e_count, dtype=bool)
+    done = (lo <= tol[:, None]).all(axis=1) & (hi >= -tol[:, None]).all(axis=1)  # z = 0 holds: None
+    limit = 4 * valid.sum(axis=1) + 4
+    order = np.full((e_count, m + 1), -1, dtype=np.int64)  # the active bounds in the order they joined
+    mu = np.zeros((e_count, m + 1))  # their multipliers
+    count = np.zeros(e_count, dtype=np.int64)
+    is_active = np.zeros((e_count, m), dtype=bool)
+    at_lo = np.zeros((e_count, m), dtype=bool)
+    every = np.arange(m)
+    seen: dict[int, set[bytes]] = {}
+    for step in range(int(limit.max(initial=0))):
+        done |= step >= limit
+        live = np.flatnonzero(~done)
+        if not live.size:
+            break
+        if step >= CYCLE_CHECK_AFTER:
+            # A problem whose active set (in order, with its sides) repeats one it had at an
+            # earlier step repeats the same steps (each is a function of that state alone) and
+            # so runs into the step limit: it stops now with the limit's outcome (None).
+            for e in live.tolist():
+                state = order[e, : count[e]].tobytes() + at_lo[e, order[e, : count[e]]].tobytes()
+                if state in seen.setdefault(e, set()):
+                    done[e] = True
+                seen[e].add(state)
+            live = np.flatnonzero(~done)
+            if not live.size:
                 break
-            del active[idx[max(wrong, key=lambda k: abs(mu[k]))]]
-        z = a_inv @ g.T @ mu
-        if np.abs(g @ z - r).max() > 1e-9 * max(1.0, np.abs(r).max()):
-            return None  # dependent active bounds that cannot all hold
-    return None
+        value = np.zeros((live.size, m))
+        for c, sub in _by_count(count[live]):
+            if c:
+                e = live[sub]
+                value[sub] = (gram(e, np.broadcast_to(every, (e.size, m)), order[e, :c]) @ mu[e, :c, None])[:, :, 0]
+        excess = np.maximum(lo[live] - value, value - hi[live])
+        excess[is_active[live]] = -np.inf
+        rows = np.arange(live.size)
+        j = np.argmax(excess, axis=1)
+        met = excess[rows, j] <= tol[live]
+        ok[live[met]] = True
+        done[live[met]] = True
+        grow, j, rows = live[~met], j[~met], rows[~met]
+        at_lo[grow, j] = lo[grow, j] - value[rows, j] > value[rows, j] - hi[grow, j]
+        is_active[grow, j] = True
+        order[grow, count[grow]] = j
+        count[grow] += 1
+        inner = grow
+        while inner.size:
+            again = []
+            for c, sub in _by_count(count[inner]):
+                e = inner[sub]
+                idx = order[e, :c]
+                block = gram(e, idx, idx)
+                lower = at_lo[e[:, None], idx]
+                r = np.where(lower, lo[e[:, None], idx], hi[e[:, None], idx])
+                m_act = (np.linalg.pinv(block, rcond=1e-13) @ r[:, :, None])[:, :, 0]
+                size = np.abs(m_act)
+                wrong = ((m_act < 0) == lower) & (size > 1e-14 * np.maximum(1.0, size.max(axis=1, keepdims=True)))
+                stop = ~wrong.any(axis=1) | (c == 1)
+                fin = e[stop]
+                residual = np.abs((block[stop] @ m_act[stop][:, :, None])[:, :, 0] - r[stop]).max(axis=1, initial=0.0)
+                done[fin[residual > 1e-9 * np.maximum(1.0, np.abs(r[stop]).max(axis=1, initial=0.0))]] = True  # cannot all hold
+                mu[fin, :c] = m_act[stop]
+                drop = e[~stop]
+                if drop.size:
+                    p = np.argmax(np.where(wrong[~stop], size[~stop], -1.0), axis=1)
+                    left = idx[~stop]
+                    is_active[drop, left[np.arange(drop.size), p]] = False
+                    order[drop, : c - 1] = left[every[None, :c] != p[:, None]].reshape(drop.size, c - 1)  # the others, in order
+                    order[drop, c - 1] = -1
+                    count[drop] -= 1
+                    again.append(drop)
+            inner = np.concatenate(again) if again else grow[:0]
+    k_max = int(count.max(initial=0))
+    return ok, order[:, :k_max], np.where(order[:, :k_max] >= 0, mu[:, :k_max], 0.0)
 
 
-@lru_cache(maxsize=4096)
-def _change_space(n: int, key: tuple, pinned: tuple, skip: tuple):
-    """(y, C_y, Z) of one ring configuration: stage 2's unknowns, G_1 over them, and a basis
-    Z of the changes D of their rows (vec(D) row-major, D[r, j] at r (1 + 3n) + j) with
-    C_y D = 0 and D 1 = 0; None without G_1 rows."""
-    rows = _red_rows(n, key, skip)
-    if not rows[1]:
-        return None
-    size = 1 + 3 * n
-    y = _stage2_unknowns(n, pinned, -1)
-    cy = np.vstack(rows[1])[:, y]
-    fixed = np.vstack([np.kron(cy, np.eye(size)), np.kron(np.eye(y.size), np.ones((1, size)))])
-    out = (y, cy, _null_space(fixed))
-    for a in out:
-        a.setflags(write=False)
-    return out
+def _by_count(counts: np.ndarray):
+    """(c, positions with counts == c) for each distinct c, ascending: the active-set solves
+    run per size, each matrix alone as it would be in a batch of one."""
+    for c in np.unique(counts).tolist():
+        yield c, np.flatnonzero(counts == c)
 
 
 def _monotone_red(
-    n: int, key: tuple, pinned: tuple, skip: tuple, q_weight: float, k: np.ndarray,
-    x: np.ndarray, bounds: list[tuple[int, int, float, float]],
-) -> np.ndarray | None:
-    """The red operator K of one closed ring, changed as little as possible so that the
-    blending functions keep the monotone spoke curves the extraction gave them (module
-    docstring, "monotone spoke curves"); None where no change inside G_1 can.
+    n: int, configs: np.ndarray, inverse: np.ndarray, pinned: tuple, skip: tuple, q_weight: float,
+    k: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, watch: np.ndarray, width: int | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The red operators K of E closed rings of one group, each changed as little as possible
+    so that the blending functions keep the monotone spoke curves the extraction gave them
+    (module docstring, "monotone spoke curves"): (ok (E,), d (E, ny, 1 + 3n)), K + d on stage
+    2's rows y where ok, K unchanged where no change inside G_1 can.
 
-    ``x``: (1 + 3n, C) the blending functions of the C control points that reach the ring, at
-    the red inputs x_hat (columns of the elevated extraction with the anchors folded in:
-    topology and intervals only); after the solve they are K x.  ``bounds``: (column c,
-    spoke i, lo, hi): the value of function c at q_i must lie in [lo, hi] (the bounds that
-    make the black step's P30 lie between q_i and P40 and q_i between s_i and P30).  Stage 2's
-    rows y = [f, q] of K change by D with C_y D = 0 (G_1 stays exact for every input), D 1 = 0
-    (rows still sum to one: affine invariance), and (D x)[q_i, c] putting the value on the
-    bound it broke (active set: a broken bound becomes an equality until none is broken), D
-    least in the change of every function it touches, sum_rows w_r |D_r x|^2 (w: 1 on f,
-    ``q_weight`` on q, stage 2's metric).  K + D stays linear in the control points."""
-    system = _change_space(n, key, pinned, skip)
-    if system is None:
-        return None
+    configs (g, n, 4) the distinct spoke keys (alpha_a, alpha_b, b0, b1; NaN for no b1), ring
+    e's is configs[inverse[e]]; k (E, 1 + 3n, 1 + 3n) the red operators; x (E, 1 + 3n, W) the
+    blending functions of the control points that reach the ring at the red inputs x_hat
+    (columns of the elevated extraction with the anchors folded in: topology and intervals
+    only; zero columns pad), after the solve K x; lo, hi (E, n, W): where watch[e, i, c], the
+    value of function c at q_i must lie in [lo, hi] (the bounds that put the black step's P30
+    between q_i and P40 and q_i between s_i and P30; ``G1Assembly._monotone``).  ``width``:
+    the number of watched functions to allow for (default: the batch's most).
+
+    The QP: stage 2's rows y = [f, q] of K change by D with C_y D = 0 (G_1 stays exact for
+    every input), D 1 = 0 (rows still sum to one: affine invariance), and (D x)[q_i, c] put on
+    the bound it broke (active set: a broken bound becomes an equality until none is broken),
+    D least in the change of every function it touches plus a ridge on the weights,
+    sum_r w_r D_r G D_r^T with G = x x^T + RIDGE tr(x x^T) / (1 + 3n) I (w: 1 on f,
+    ``q_weight`` on q, stage 2's metric).  K + D stays linear in the control points.
+
+    Solved without a basis of the changes.  The D with C_y D = 0 and D 1 = 0 are exactly
+    N A P^T, N a basis of null(C_y) and P one of the vectors orthogonal to 1, and the metric
+    is W (x) G on vec(D); so its inverse on that space, Z (Z^T M Z)^-1 Z^T for any basis Z, is
+    S1 (x) S2 with S1 = N (N^T W N)^-1 N^T (ny x ny, from the configuration alone: W^(-1/2)
+    times the projector onto null(C_y W^(-1/2)), an SVD of C_y) and
+    S2 = P (P^T G P)^-1 P^T = G^-1 - G^-1 1 1^T G^-1 / (1^T G^-1 1) (one solve per ring).  A
+    bound on (D x)[q_i, c] is the row e_{q_i} (x) x_c, so the bounds' Gram matrix is
+    H[k, l] = S1[q_k, q_l] (x_{c_k}^T S2 x_{c_l}) and the solution
+    D = sum_k mu_k (S1 e_{q_k}) (S2 x_{c_k})^T: the active-set steps run on H alone
+    (``_active_set_batch``, every ring in lockstep).  The first version built Z (an SVD of
+    ~3 n^2 x 6 n^2 per configuration) and the (6 n^2)^2 metric per ring; it took the same
+    steps in exact arithmetic, and in floating point differs by what the QP makes of round-off
+    (docs/speed.md; ``tests.helpers.monotone_red_primal`` keeps it as the tests' reference).
+    The same checks close it: |D| <= MAX_CHANGE and |C_y D| <= 1e-12, else the ring keeps K."""
     size = 1 + 3 * n
-    y, cy, basis = system
+    e_count = k.shape[0]
+    live = [i for i in range(n) if not skip[i]]
+    y = _stage2_unknowns(n, pinned, -1)
     ny = y.size
-    row_of = {int(j): r for r, j in enumerate(y.tolist())}
-    w = np.where(y >= 1 + 2 * n, q_weight, 1.0)
-    # x x^T is singular where the functions do not span the inputs: a change D with D x = 0
-    # alters no function, and left free it lets the solver wander off to weights of 1e9 that
-    # break G_1 in rounding; a small ridge (the weights' own size) pins those directions.
-    gram = x @ x.T
-    gram += (RIDGE * np.trace(gram) / size + 1e-300) * np.eye(size)
-    v = k[y] @ x  # (ny, C)
-    # D = reshape(Z z): Z a basis of the D that keep G_1 and the row sums; the bounds on
-    # (D x)[q_i, c] are rows of B z.  Objective |M^(1/2) Z z|^2, M = W (x) (x x^T).
-    metric = basis.T @ np.kron(np.diag(w), gram) @ basis
-    b_rows, lo, hi = [], [], []
-    for col, i, low, high in bounds:
-        r = row_of[1 + 2 * n + i]
-        pick = np.zeros(ny * size)
-        pick[r * size : (r + 1) * size] = x[:, col]
-        b_rows.append(pick @ basis)
-        lo.append(low - v[r, col])
-        hi.append(high - v[r, col])
-    bmat, lo, hi = np.array(b_rows), np.array(lo), np.array(hi)
-    z = _bounded_least_change(metric, bmat, lo, hi)
-    if z is None:
-        return None
-    d = (basis @ z).reshape(ny, size)
-    if np.abs(d).max() > MAX_CHANGE or np.abs(cy @ d).max() > 1e-12:
-        return None
-    out = k.copy()
-    out[y] += d
-    return out
+    ok = np.zeros(e_count, dtype=bool)
+    d = np.zeros((e_count, ny, size))
+    if not live or not e_count:
+        return ok, d
+    cy = _red_rows_batch(n, configs, live)[1][:, :, y]  # (g, L, ny)
+    root = 1.0 / np.sqrt(np.where(y >= 1 + 2 * n, q_weight, 1.0))
+    _, sv, vt = np.linalg.svd(cy * root, full_matrices=True)
+    rank = np.count_nonzero(sv > 1e-11 * np.maximum(1.0, sv.max(axis=1, initial=0.0))[:, None], axis=1)
+    null = np.arange(ny)[None, :] >= rank[:, None]
+    s1 = (root[:, None] * ((np.swapaxes(vt, 1, 2) * null[:, None, :]) @ vt) * root[None, :])[inverse]  # (E, ny, ny)
+    q_row = np.full(n, -1, dtype=np.int64)
+    for r, j in enumerate(y.tolist()):
+        if j >= 1 + 2 * n:
+            q_row[j - 1 - 2 * n] = r
+    # the functions each ring watches, and its bounds (spoke-major)
+    watched = watch.any(axis=1)  # (E, W)
+    width = int(watched.sum(axis=1).max(initial=0)) if width is None else width
+    position = np.cumsum(watched, axis=1) - 1
+    we, wc = np.nonzero(watched)
+    cols = np.zeros((e_count, width), dtype=np.int64)
+    cols[we, position[we, wc]] = wc
+    col_ok = np.zeros((e_count, width), dtype=bool)
+    col_ok[we, position[we, wc]] = True
+    be, bi, bc = np.nonzero(watch)
+    m_e = np.bincount(be, minlength=e_count)
+    bk = np.arange(be.size) - np.concatenate([[0], np.cumsum(m_e)[:-1]])[be]
+    m = int(m_e.max(initial=0))
+    v = k[:, y] @ x  # (E, ny, W): stage 2's rows of every function after the red solve
+    gram = x @ np.swapaxes(x, 1, 2)
+    gram += (RIDGE * np.trace(gram, axis1=1, axis2=2) / size + 1e-300)[:, None, None] * np.eye(size)
+    xw = np.take_along_axis(x, cols[:, None, :], axis=2) * col_ok[:, None, :]
+    # G^-1 of the watched functions and of 1 in one solve.  LAPACK's and BLAS's results for a
+    # column depend on how many columns they take at once, so the width is the batch's
+    # (``width``: a caller solving one ring of a batch passes the batch's): a ring's numbers
+    # are then the same in a batch of one.
+    solved = np.linalg.solve(gram, np.concatenate([xw, np.ones((e_count, size, 1))], axis=2))
+    g_x = solved[:, :, :-1]
+    g_one = solved[:, :, -1:]
+    s2x = g_x - g_one * (g_x.sum(axis=1, keepdims=True) / g_one.sum(axis=1, keepdims=True))
+    q = np.swapaxes(xw, 1, 2) @ s2x  # (E, width, width): x_c^T S2 x_c'
+    valid = np.zeros((e_count, m), dtype=bool)
+    valid[be, bk] = True
+    b_row = np.zeros((e_count, m), dtype=np.int64)
+    b_row[be, bk] = q_row[bi]
+    b_col = np.zeros((e_count, m), dtype=np.int64)
+    b_col[be, bk] = position[be, bc]
+    b_lo = np.zeros((e_count, m))
+    b_hi = np.zeros((e_count, m))
+    b_lo[be, bk] = lo[be, bi, bc] - v[be, q_row[bi], bc]
+    b_hi[be, bk] = hi[be, bi, bc] - v[be, q_row[bi], bc]
+
+    # H[e, a, b] = S1[e, row_a, row_b] Q[e, col_a, col_b], read from the flat arrays
+    s1_at = b_row * ny + (np.arange(e_count) * ny * ny)[:, None]
+    q_at = b_col * width + (np.arange(e_count) * width * width)[:, None]
+    s1_flat, q_flat = s1.ravel(), q.ravel()
+
+    def h_entries(e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        s1_a, s1_b = np.take_along_axis(s1_at[e], a, 1), np.take_along_axis(b_row[e], b, 1)
+        q_a, q_b = np.take_along_axis(q_at[e], a, 1), np.take_along_axis(b_col[e], b, 1)
+        return s1_flat[s1_a[:, :, None] + s1_b[:, None, :]] * q_flat[q_a[:, :, None] + q_b[:, None, :]]
+
+    solved_ok, order, mu = _active_set_batch(h_entries, b_lo, b_hi, valid)
+    change = np.zeros((e_count, ny, size))
+    for c, e in _by_count((order >= 0).sum(axis=1)):
+        if c:
+            u = np.take_along_axis(s1[e], np.take_along_axis(b_row[e], order[e, :c], 1)[:, None, :], axis=2)  # (., ny, c)
+            w = np.take_along_axis(s2x[e], np.take_along_axis(b_col[e], order[e, :c], 1)[:, None, :], axis=2)  # (., size, c)
+            change[e] = (u * mu[e, None, :c]) @ np.swapaxes(w, 1, 2)
+    exact = np.abs(cy[inverse] @ change).max(axis=(1, 2), initial=0.0) <= 1e-12
+    small = np.abs(change).max(axis=(1, 2), initial=0.0) <= MAX_CHANGE
+    ok = solved_ok & exact & small
+    d[ok] = change[ok]
+    return ok, d
+
+
+@memo(16)
+def _monotone_memo(*args: Hashable) -> None:
+    """The in-process store of ``_monotone_changes`` (filled with ``prime``; a few groups)."""
+    return None
+
+
+def _monotone_changes(
+    n: int, configs: np.ndarray, inverse: np.ndarray, pinned: tuple, skip: tuple, q_weight: float,
+    k: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, watch: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``_monotone_red`` through the in-process memo and the persistent cache
+    (``patching.util.solve_cache``), one entry per group of rings.
+
+    A ring's QP depends on its blending functions x and bounds, which follow from the intervals
+    of a wider neighbourhood than its configuration: on the half-EP mesh no two of its 6,820
+    QPs have the same inputs (nor after sorting each ring's functions), so an entry per ring
+    would be read once, by this mesh.  The key is therefore a SHA-256 of the exact bytes of
+    everything the solve reads (configurations, red operators, functions, bounds, watched
+    pairs, with their shapes) and the settings (valence, pinned and sharp spokes, q weight,
+    ``RIDGE``, ``MAX_CHANGE``); the store adds the source digest.  The entry holds which rings
+    changed (1.0 / 0.0) and their changes D, float64 bit for bit.  Read back it is trusted only
+    if ``_monotone_valid`` accepts it (shapes, |D| <= MAX_CHANGE, D 1 = 0, C_y D = 0, and every
+    watched bound held by K + D), else it is solved afresh and rewritten.  With batching off
+    (``patching.util.memo.set_batching``) the rings are solved one at a time, by the same
+    arithmetic (a ring's numbers do not depend on its batch), so both paths share entries."""
+    e_count, ny, size = k.shape[0], _stage2_unknowns(n, pinned, -1).size, 1 + 3 * n
+    digest = hashlib.sha256()
+    for a in (configs, inverse, k, x, lo, hi, watch):
+        a = np.ascontiguousarray(a)
+        digest.update(repr((a.dtype.str, a.shape)).encode() + a.tobytes())
+    args = (n, pinned, skip, float(q_weight), RIDGE, MAX_CHANGE, digest.hexdigest())
+    if _monotone_memo.known(args):
+        return _monotone_memo(*args)
+
+    def solve() -> list[np.ndarray]:
+        if batching():
+            ok, d = _monotone_red(n, configs, inverse, pinned, skip, q_weight, k, x, lo, hi, watch)
+        else:  # ring by ring, at the batch's width (the reference path of the batched solves)
+            width = int(watch.any(axis=1).sum(axis=1).max(initial=0))
+            one = [
+                _monotone_red(n, configs[inverse[e : e + 1]], np.zeros(1, dtype=np.int64), pinned, skip, q_weight,
+                                    k[e : e + 1], x[e : e + 1], lo[e : e + 1], hi[e : e + 1], watch[e : e + 1], width)
+                for e in range(e_count)
+            ]
+            ok = np.array([o[0] for o, _ in one], dtype=bool).reshape(e_count)
+            d = np.concatenate([c for _, c in one]) if one else np.zeros((0, ny, size))
+        return [ok.astype(np.float64), d[ok]]
+
+    def valid(arrays: list[np.ndarray]) -> bool:
+        return _monotone_valid(n, configs, inverse, pinned, skip, k, x, lo, hi, watch, arrays)
+
+    flags, changes = lookup("monotone_red", args, 2, solve, valid)
+    ok = flags == 1.0
+    d = np.zeros((e_count, ny, size))
+    d[ok] = changes
+    for a in (ok, d):
+        a.setflags(write=False)
+    _monotone_memo.prime(args, (ok, d))
+    return ok, d
+
+
+def _monotone_valid(
+    n: int, configs: np.ndarray, inverse: np.ndarray, pinned: tuple, skip: tuple,
+    k: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, watch: np.ndarray, arrays: list[np.ndarray],
+) -> bool:
+    """A cache entry (flags, changes) of ``_monotone_changes`` is trusted if the flags are 0 or
+    1 per ring, the changes fit the changed rings, and each change is one the solve could
+    return: |D| <= MAX_CHANGE, rows summing to 0 (1e-9), C_y D = 0 (1e-12, the solve's own
+    test), and every watched bound of the ring held by K + D (1e-9 of the bounds' size)."""
+    flags, changes = arrays
+    y = _stage2_unknowns(n, pinned, -1)
+    size = 1 + 3 * n
+    if flags.shape != (k.shape[0],) or not np.isin(flags, (0.0, 1.0)).all():
+        return False
+    ok = flags == 1.0
+    if changes.shape != (int(ok.sum()), y.size, size):
+        return False
+    if not changes.size:
+        return True
+    live = [i for i in range(n) if not skip[i]]
+    if not live or np.abs(changes).max() > MAX_CHANGE or np.abs(changes.sum(axis=2)).max() > 1e-9:
+        return False
+    cy = _red_rows_batch(n, configs, live)[1][:, :, y]
+    if np.abs(cy[inverse[ok]] @ changes).max() > 1e-12:
+        return False
+    q_rows = [r for r, j in enumerate(y.tolist()) if j >= 1 + 2 * n]
+    spokes = [j - 1 - 2 * n for j in y.tolist() if j >= 1 + 2 * n]
+    value = ((k[ok][:, y] + changes) @ x[ok])[:, q_rows]  # (E_ok, spokes, W): q_i of every function
+    w = watch[ok][:, spokes]
+    low, high = lo[ok][:, spokes][w], hi[ok][:, spokes][w]
+    scale = 1e-9 * max(1.0, float(np.abs(np.concatenate([low, high])).max(initial=0.0)))
+    return bool(np.all(value[w] >= low - scale) and np.all(value[w] <= high + scale))
 
 
 def _red_solve(
@@ -665,14 +898,7 @@ def _red_solve_batch(
     q = lambda i: 1 + 2 * n + (i % n)  # noqa: E731
     g_count = len(keys)
     spokes = np.array([[np.nan if x is None else x for x in spoke] for key in keys for spoke in key], dtype=np.float64)
-    eqs = spoke_equations_batch(*spokes.T).reshape(g_count, n, 6, -1)
-    rows = np.zeros((2, g_count, len(live), size))  # G_0 and G_1 rows of the constrained spokes
-    for r, i in enumerate(live):
-        slot_to_x = _spoke_slots(n, i)
-        outside = np.delete(eqs[:, i, :2], list(slot_to_x), axis=-1)
-        assert np.allclose(outside, 0.0), "G_0, G_1 reach beyond the red slots"
-        for slot, col in slot_to_x.items():
-            rows[:, :, r, col] += np.moveaxis(eqs[:, i, :2, slot], 1, 0)
+    rows = _red_rows_batch(n, spokes.reshape(g_count, n, 4), live)
     n1, free, e, hold, put = _stage1_structure(n, pinned, gap)
     c0 = rows[0][:, :, :n1]
     cf = c0 @ put
@@ -725,6 +951,51 @@ def blue_weights() -> np.ndarray:
             out[r, 6 * m + q] += 0.5 * w
     out.setflags(write=False)
     return out
+
+
+#: ``_ring_blocks`` numbers each ring's columns in a (rings x columns) table of this many rings
+#: at a time (a few MB, reused).
+RING_TABLE = 256
+
+
+def _ring_blocks(ref: sp.csr_matrix, e_count: int, per: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``ref`` (e_count rings of ``per`` consecutive rows) as dense blocks over
+    the columns each ring reaches: (x (e_count, per, W), columns (e_count, W)), ring e's
+    columns in the order of their last entry in its rows, then -1 (zero columns of x) up to
+    the widest ring's W.  ``ref`` is put in canonical form (in place).  No sort: each ring's
+    columns are numbered through a table indexed by (ring, column), filled for a few hundred
+    rings at a time (an entry's number is written before it is read, so the table is never
+    cleared)."""
+    ref.sum_duplicates()  # one entry per (row, column), so x is written, not accumulated
+    counts = np.diff(ref.indptr)
+    wide = ref.shape[1]
+    ring_ptr = ref.indptr[:: per] if ref.shape[0] else np.zeros(1, dtype=np.int64)
+    table = np.empty(min(RING_TABLE, max(e_count, 1)) * wide, dtype=np.int64)
+    ring = np.repeat(np.arange(ref.shape[0]) // per, counts)
+    slot = np.empty(ref.nnz, dtype=np.int64)
+    owners, slots, cols = [], [], []
+    for first in range(0, e_count, RING_TABLE):
+        last = min(first + RING_TABLE, e_count)
+        span = slice(int(ring_ptr[first]), int(ring_ptr[last]))
+        key = (ring[span] - first) * wide + ref.indices[span]
+        order = np.arange(key.size)
+        table[key] = order
+        own = table[key] == order  # one entry of each (ring, column): its last
+        ring_own = ring[span][own]
+        number = np.arange(ring_own.size) - np.searchsorted(ring_own, ring_own)
+        table[key[own]] = number
+        slot[span] = table[key]
+        owners.append(ring_own)
+        slots.append(number)
+        cols.append(ref.indices[span][own])
+    owner = np.concatenate(owners) if owners else np.zeros(0, dtype=np.int64)
+    number = np.concatenate(slots) if slots else np.zeros(0, dtype=np.int64)
+    width = int(number.max(initial=-1)) + 1
+    columns = np.full((e_count, width), -1, dtype=np.int64)
+    columns[owner, number] = np.concatenate(cols) if cols else number
+    x = np.zeros((e_count, per, width))
+    x[ring, np.repeat(np.arange(ref.shape[0]) % per, counts), slot] = ref.data
+    return x, columns
 
 
 class G1Assembly:
@@ -829,17 +1100,8 @@ class G1Assembly:
         spoke = lambda j, m: np.stack([self.rows(g, i, j, m) for i in range(n)], 1)  # noqa: E731
         rows = np.concatenate([src, spoke(3, 0), spoke(4, 0), spoke(5, 0)], axis=1)  # (E, size + 3n)
         e_count, per = rows.shape
-        ref = self.reference(rows.ravel()).tocoo()
-        ep = ref.row // per
-        keys = ep * np.int64(ref.shape[1]) + ref.col
-        uk, inv = np.unique(keys, return_inverse=True)
-        starts = np.searchsorted(uk, np.arange(e_count, dtype=np.int64) * ref.shape[1])
-        local = np.arange(uk.size) - starts[uk // ref.shape[1]]
-        width = int(local.max(initial=-1)) + 1
-        x = np.zeros((e_count, per, width))
-        np.add.at(x, (ep, ref.row % per, local[inv]), ref.data)
-        of_ep = np.zeros((e_count, width), dtype=bool)  # the column is an EP's function
-        of_ep[uk // ref.shape[1], local] = self.is_ep[uk % ref.shape[1]]
+        x, reached = _ring_blocks(sp.csr_matrix(self.reference(rows.ravel())), e_count, per)
+        of_ep = self.is_ep[reached] & (reached >= 0)  # the column is an EP's function
         v = np.einsum("eij,ejc->eic", ops, x[:, :size])
         s_hat, q_hat = x[:, 1 : 1 + n], x[:, 1 + 2 * n : size]
         p30_hat, p40, p50 = x[:, size : size + n], x[:, size + n : size + 2 * n], x[:, size + 2 * n :]
@@ -857,14 +1119,13 @@ class G1Assembly:
         bad = np.flatnonzero(broken.any(axis=(1, 2)))
         if not bad.size:
             return ops
+        used, of_ring = np.unique(inverse[bad], return_inverse=True)
+        ok, change = _monotone_changes(
+            n, uniq[used].reshape(-1, n, 4), of_ring.ravel(), pinned, skip, Q_WEIGHT, ops[bad], x[bad, :size], lo[bad], hi[bad], watch[bad]
+        )
         ops = ops.copy()
-        for e in bad.tolist():
-            key = tuple(cache_key(r) for r in uniq[inverse[e]].reshape(n, 4))
-            i_idx, c_idx = np.nonzero(watch[e])
-            bounds = [(int(c), int(i), float(lo[e, i, c]), float(hi[e, i, c])) for i, c in zip(i_idx, c_idx)]
-            fixed = _monotone_red(n, key, pinned, skip, Q_WEIGHT, ops[e], x[e, :size], bounds)
-            if fixed is not None:
-                ops[e] = fixed
+        fixed = bad[ok]
+        ops[fixed[:, None], _stage2_unknowns(n, pinned, -1)[None, :]] += change[ok]
         return ops
 
     def black(self, mixer: RowMixer) -> None:
