@@ -4,8 +4,9 @@ warm-up round), alternated in one run; optionally a second checkout (``--before 
 same rotation, also without and with the cache.  The mesh is ``benchmarks/build.py``'s "coarse" one: an icosphere's triangles
 split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
 drawn from {1, 2, 5} per strip.  Each child prints the wall and CPU seconds of the build alone
-(the mesh read and the imports excluded).  Run by hand:
-``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR]``.
+(the mesh read and the imports excluded).  ``--no-monotone`` switches the red solve's monotone
+spoke step off in every child, to see the rest of the build.  Run by hand:
+``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR] [--no-monotone]``.
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 CHILD = r"""
 import json, sys, time
 import patching
+if sys.argv[3] == "off":  # the monotone spoke step of the red solve off (where the tree has it)
+    from patching.extraordinary import g1_patches
+    g1_patches.MONOTONE_SPOKES = False
 mesh = patching.read_mesh(sys.argv[1])
 if sys.argv[2] == "cache":
     from export.solve_cache import using_disk_cache
@@ -46,6 +50,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without and with the cache")
+    parser.add_argument("--no-monotone", action="store_true", help="g1_patches.MONOTONE_SPOKES = False in every child (the rest of the build alone)")
     args = parser.parse_args()
 
     from build import ep_mesh
@@ -57,6 +62,7 @@ def main() -> None:
         sides["before"] = (str(Path(args.before).resolve()), "none")
         sides["before cache"] = (str(Path(args.before).resolve()), "cache")  # its own entries (another source digest)
     times: dict[str, list[dict]] = {name: [] for name in sides}
+    start_load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         obj = Path(tmp) / "coarse.obj"
         write_obj(mesh, obj)
@@ -64,11 +70,14 @@ def main() -> None:
             for name, (tree, mode) in sides.items():
                 env = dict(os.environ, PYTHONPATH=tree, NUPATCH_CACHE_DIR=str(Path(tmp) / "cache"))
                 env.pop("PYTHONDONTWRITEBYTECODE", None)
-                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode], env=env, check=True,  # cwd: not a checkout
+                monotone = "off" if args.no_monotone else "on"
+                out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode, monotone], env=env, check=True,  # cwd: not a checkout
                                      capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
                 if run:
                     times[name].append(json.loads(out.strip().splitlines()[-1]))
-    print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min)")
+    load = os.getloadavg()[0]
+    print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min),"
+          f" monotone step {'off' if args.no_monotone else 'on'}, load {start_load:.1f} -> {load:.1f}")
     for name, rows in times.items():
         wall = np.array([r["wall"] for r in rows])
         cpu = np.array([r["cpu"] for r in rows])

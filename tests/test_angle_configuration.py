@@ -645,6 +645,32 @@ def test_corner_shares_the_turn_equally(mode):
     assert np.all(np.isnan(c.b[list(sharp)]))
 
 
+@given(
+    case=st.integers(3, 12).flatmap(
+        lambda n: st.tuples(
+            st.lists(st.lists(st.sampled_from([0.0, 1.0, 2.0, 2.5]), min_size=n, max_size=n), min_size=1, max_size=30),
+            st.lists(st.integers(0, n - 1), max_size=3, unique=True),
+        )
+    )
+)
+@SMALL
+def test_canonical_labelling_vectorised_is_the_loop(case):
+    """``_canonical_many`` (all EPs of one valence at once) picks the same relabelling as the
+    one-EP loop, ties (repeated intervals, symmetric patterns) included."""
+    rows, sharp = case
+    sharp = tuple(sorted(sharp))
+    keys = [tuple(r) for r in rows]
+    ac_module._canonical.cache_clear()
+    ac_module._canonical_many([(k, sharp) for k in keys])
+    for k in keys:
+        assert ac_module._canonical.known((k, sharp))
+        (dc, sc), g, gp = ac_module._canonical(k, sharp)
+        (dl, sl), gl, gpl = ac_module._canonical.__wrapped__(k, sharp)
+        assert dc == dl and sc == sl
+        np.testing.assert_array_equal(g, gl)
+        np.testing.assert_array_equal(gp, gpl)
+
+
 def test_sharp_rotation_equivariance():
     d = np.array([1.0, 2.0, 5.0, 1.0, 3.0, 2.0, 4.0])
     c = angle_configuration(d, sharp_spokes=(1, 4))

@@ -214,7 +214,9 @@ def angle_configurations(
     problems = [_problem(row, mode, omega, max_iterations, sharp_spokes) for row in rows]
     if batching():
         todo = []
-        for args in dict.fromkeys(args for args in problems if not _mapped.known(args)):
+        fresh = list(dict.fromkeys(args for args in problems if not _mapped.known(args)))
+        _canonical_many([(args[0], args[4]) for args in fresh])
+        for args in fresh:
             (dc, sharp_c), _, _ = _canonical(args[0], args[4])
             canonical = (dc, mode, float(omega), int(max_iterations), sharp_c)
             if not _cached.known(canonical):
@@ -254,18 +256,55 @@ def _dihedral(n: int):
         yield (c - j) % n, (c - j - 1) % n
 
 
-@lru_cache(maxsize=4096)
+@lru_cache(maxsize=None)
+def _relabellings(n: int, sharp: tuple[int, ...]):
+    """The 2n relabellings of ``_dihedral`` as arrays (2n, n) (spoke maps, patch maps), each
+    one's relabelled sharp set, and the rank of those sets in tuple order (equal sets, equal
+    rank)."""
+    maps = list(_dihedral(n))
+    spokes = np.array([g for g, _ in maps])
+    patches = np.array([gp for _, gp in maps])
+    marked = set(sharp)
+    sets = [tuple(j for j, x in enumerate(g.tolist()) if x in marked) for g in spokes]
+    order = sorted(set(sets))
+    return spokes, patches, sets, np.array([order.index(x) for x in sets])
+
+
+@memo(maxsize=8192)
 def _canonical(key: tuple[float, ...], sharp: tuple[int, ...]):
     """((intervals, sharp set) of the canonical relabelling, spoke map, patch map): the
-    lexicographically smallest over rotations and reflections."""
+    lexicographically smallest (intervals, then sharp set) over rotations and reflections, the
+    first in ``_dihedral``'s order among equals."""
+    spokes, patches, sets, _ = _relabellings(len(key), sharp)
     best = None
-    marked = set(sharp)
-    for g, gp in _dihedral(len(key)):  # in plain Python: a build meets hundreds of EPs, 2n relabellings each
-        gl = g.tolist()
-        cand = (tuple(key[j] for j in gl), tuple(j for j, x in enumerate(gl) if x in marked))
+    for k, g in enumerate(spokes.tolist()):  # in plain Python; _canonical_many for many EPs at once
+        cand = (tuple(key[j] for j in g), sets[k])
         if best is None or cand < best[0]:
-            best = (cand, g, gp)
-    return best
+            best = (cand, k)
+    return best[0], spokes[best[1]], patches[best[1]]
+
+
+def _canonical_many(problems: list[tuple[tuple[float, ...], tuple[int, ...]]]) -> None:
+    """``_canonical`` of many (intervals, sharp set) pairs, vectorised over those of one valence
+    and sharp set, put into its memo: the relabelled intervals (g, 2n, n) narrowed column by
+    column to the candidates equal to the smallest, then by the sharp sets' rank, then the
+    first; the same choice as the one-problem loop."""
+    groups: dict[tuple[int, tuple[int, ...]], list[tuple]] = {}
+    for key, sharp in problems:
+        if not _canonical.known((key, sharp)):
+            groups.setdefault((len(key), sharp), []).append(key)
+    for (n, sharp), keys in groups.items():
+        spokes, patches, sets, rank = _relabellings(n, sharp)
+        cand = np.array(keys)[:, spokes]  # (g, 2n, n)
+        alive = np.ones(cand.shape[:2], dtype=bool)
+        for col in range(n):
+            v = np.where(alive, cand[:, :, col], np.inf)
+            alive &= cand[:, :, col] == v.min(axis=1)[:, None]
+        r = np.where(alive, rank[None, :], rank.size)
+        alive &= r == r.min(axis=1)[:, None]
+        first = np.argmax(alive, axis=1)
+        for key, k, c in zip(keys, first.tolist(), cand[np.arange(len(keys)), first].tolist()):
+            _canonical.prime((key, sharp), ((tuple(c), sets[k]), spokes[k], patches[k]))
 
 
 @memo(maxsize=4096)
