@@ -561,7 +561,6 @@ class _Chart:
         self.variable = np.setdiff1d(np.arange(st.n), [j for j, _ in fixed])
         self.last = last
         self.fixed = fixed
-        self.column = {int(j): c for c, j in enumerate(self.free)}
 
 
 # --------------------------------------------------------------------------------------------
@@ -577,9 +576,12 @@ def _objective(theta, lengths, theta_hat, l_hat, omega) -> float:
 
 
 class _BatchProblem:
-    """E of ``_Problem`` for g configurations of one structure at once, as least-squares
-    residuals of x = (u, s): the free angles u (the chart) and the chain factors s together,
-    l = s_c q_c(theta(u)) with q_c of unit norm.  Residuals (g, R), Jacobians (g, R, f + C)."""
+    """E = ||l-hat - l||^2 + omega ||theta-hat - theta||^2 for g configurations of one
+    structure at once, as least-squares residuals of x = (u, s): the free angles u (the chart)
+    and the chain factors s, l = s_c q_c(theta(u)) with q_c each chain's shape (eqs. 6/7) of
+    unit norm; with symmetries, stiff rows 1e3 (theta - theta[p]) (module docstring).
+    Residuals (g, R), Jacobians (g, R, f + C); the analytic Jacobian uses
+    d log m / d theta = E cot(theta), chained through the chart."""
 
     def __init__(self, dbar, st, theta_hat, l_hat, omega, symmetries=()) -> None:
         self.st, self.dbar, self.theta_hat, self.l_hat = st, dbar, theta_hat, l_hat
@@ -793,8 +795,8 @@ def _damped_newton(prob: _BatchProblem, x, theta, r, todo: np.ndarray, k: int, l
     the Gauss-Newton step when its trust region holds it).  H is J^T J (Gauss-Newton, as in
     MINPACK's lmder, so that the iterates head for the same minimum) until a step of at most
     1e-3 has been taken, then the Hessian of E (central differences of the analytic gradient),
-    which converges fast where the residual is large.  Until a step of at most 1e-9 with little
-    damping, or ``limit`` steps."""
+    which converges fast where the residual is large.  Until a step of at most ``tol`` with
+    little damping, or ``limit`` steps."""
     g, p = x.shape
     cost = np.sum(r * r, axis=1)
     grad = np.zeros((g, k))
