@@ -66,6 +66,7 @@ def main() -> None:
         sides["before"] = (str(Path(args.before).resolve()), "none")
         sides["before cache"] = (str(Path(args.before).resolve()), "cache")  # its own entries (another source digest)
     times: dict[str, list[dict]] = {name: [] for name in sides}
+    start_load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         obj = Path(tmp) / "coarse.obj"
         write_obj(mesh, obj)
@@ -77,7 +78,9 @@ def main() -> None:
                                      capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
                 if run:
                     times[name].append(json.loads(out.strip().splitlines()[-1]))
-    print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min)")
+    load = os.getloadavg()[0]
+    print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min),"
+          f" load {start_load:.1f} -> {load:.1f}")
     for name, rows in times.items():
         wall = np.array([r["wall"] for r in rows])
         cpu = np.array([r["cpu"] for r in rows])

@@ -94,7 +94,9 @@ def main() -> None:
     sides = {"floor": None, "floor-gc": None, "nupatch": str(ROOT), "no-cache": str(ROOT)}
     if args.before:
         sides["before"] = str(Path(args.before).resolve())
+        sides["before no-cache"] = str(Path(args.before).resolve())  # its first build
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in sides}
+    start_load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         np.save(tmp / "nets.npy", nets, allow_pickle=True)
@@ -110,18 +112,19 @@ def main() -> None:
                 else:
                     env["PYTHONPATH"] = tree
                     env["NUPATCH_CACHE_DIR"] = str(tmp / "cache")
-                    flags = ["--no-cache"] if name == "no-cache" else []
+                    flags = ["--no-cache"] if name.endswith("no-cache") else []
                     cmd = [sys.executable, "-m", "export.cli", "build", args.mesh, "-o", str(tmp / f"{name}.step"), "-q", *flags, *args.extra]
                 t = timed_process(cmd, env, str(tmp))
                 if run:
                     times[name].append(t)
-    print(f"{Path(args.mesh).name}: {surface.n_patches} faces, {args.runs} runs alternated, median (min)")
+    print(f"{Path(args.mesh).name}: {surface.n_patches} faces, {args.runs} runs alternated, median (min),"
+          f" load {start_load:.1f} -> {os.getloadavg()[0]:.1f}")
     floor_wall = np.median([w for w, _ in times["floor"]])
     floor_cpu = np.median([c for _, c in times["floor"]])
     for name, rows in times.items():
         wall = np.array([w for w, _ in rows])
         cpu = np.array([c for _, c in rows])
-        print(f"  {name:8s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})"
+        print(f"  {name:15s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})"
               f"  ratio to floor: wall {np.median(wall) / floor_wall:4.2f}, cpu {np.median(cpu) / floor_cpu:4.2f}")
 
 

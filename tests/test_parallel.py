@@ -70,8 +70,8 @@ def test_builds_run_their_small_dense_solves_on_one_blas_thread(monkeypatch):
     from tests.helpers import quad_mesh_with_eps
 
     seen = []
-    angles = g1_patches.angle_configuration
-    monkeypatch.setattr(g1_patches, "angle_configuration", lambda *a, **k: seen.append(blas_threads()) or angles(*a, **k))
+    angles = g1_patches.angle_configurations
+    monkeypatch.setattr(g1_patches, "angle_configurations", lambda *a, **k: seen.append(blas_threads()) or angles(*a, **k))
     with threadpool_limits(limits=2, user_api="blas"):
         before = blas_threads()
         patching.build_operator(quad_mesh_with_eps("bipyramid-5"))

@@ -252,6 +252,24 @@ def test_whole_build_process_freezes_its_heap_and_writes_the_same_step(tmp_path,
         assert _strip_time_stamp(out) == reference
 
 
+def test_first_build_imports_no_scipy_optimize(tmp_path):
+    """A whole ``nupatch build --no-cache`` of l_bracket (which optimises angle configurations:
+    its intervals are not uniform) never imports scipy.optimize: the angle configurations of
+    [FSLYJ] sec. 3.3 are solved by the package's own batched solver."""
+    code = (
+        "import sys, export.cli\n"
+        "from patching.extraordinary import angle_configuration as ac\n"
+        f"code = export.cli.main(['build', {str(L_BRACKET)!r}, '-o', {str(tmp_path / 'a.step')!r}, '-q', '--no-cache'])\n"
+        "solved = [c for c in ac._cached._values.values() if c.iterations > 0]\n"
+        "print(code, len(solved), 'scipy.optimize' in sys.modules)\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUPATCH_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True, cwd=tmp_path)
+    code, solved, imported = out.stdout.split()
+    assert code == "0" and int(solved) > 0 and imported == "False"
+    assert not (tmp_path / "cache").exists()
+
+
 def _format_obj_line_by_line(mesh, comment=""):
     """The OBJ writer as it was, one line at a time: the reference of the vectorised one."""
     lines = [f"# {line}" for line in comment.splitlines()]

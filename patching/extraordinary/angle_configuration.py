@@ -93,20 +93,23 @@ Choices the text leaves open (documented here, tested):
   sharp set) have a symmetry the optimisation is restricted to angles with that symmetry
   (stiff penalty rows, then an exact average and the Lemma 2 pair re-solved).
 * Alternating scheme (section 3.3, Remark 2): the variables are the angles and the length
-  factor(s) of the previous paragraph.  Step 1 fixes the factors and runs Levenberg-Marquardt
-  (scipy.optimize.least_squares, method "lm", analytic Jacobian) on the angles; step 2 refits
-  the factors explicitly and recomputes l.  Each step lowers E = ||l-hat - l||^2 + omega
-  ||theta-hat - theta||^2, so E decreases monotonically.  Each chain's shape is scaled to unit
-  norm, so that angles change shape and factors change size (with l_0 = 1 instead the blocks
-  zig-zag: over 200 iterations at valence 16, against 4 to 10 now).  Stop when the largest
-  angle change of an outer iteration is below 1e-11 rad or E stops decreasing in floating
-  point, or after max_iterations (then the current iterate is kept and ``converged`` is False).
-  Near a minimum with a large residual E is flat to round-off over ~sqrt(eps) in the angles,
-  so the minimiser is located to ~1e-8 rad there (Gauss-Newton polishing does better where
-  the residual is small).  The constraints are built into a chart: in every sector
-  all angles but the last are free and the last closes the sector's sum; when Lemma 2 applies
-  (even n) the last two angles of one sector come from the closed form above, so the condition
-  holds exactly at every iterate.  Steps that leave (0, pi) are rejected by a large residual.
+  factor(s) of the previous paragraph.  Step 1 fixes the factors and minimises E over the
+  angles; step 2 refits the factors explicitly and recomputes l.  Each step lowers E =
+  ||l-hat - l||^2 + omega ||theta-hat - theta||^2, so E decreases monotonically.  Each chain's
+  shape is scaled to unit norm, so that angles change shape and factors change size (with l_0 =
+  1 instead the blocks zig-zag: over 200 iterations at valence 16, against 4 to 10 now).  Step 1
+  opens with the Levenberg-Marquardt rules of MINPACK's lmder ([Mor78], which earlier versions
+  called through scipy.optimize: where E has several minima, the same rules from the same
+  start end in the same one) and finishes with damped Newton steps.  The scheme stops when an outer
+  iteration moves no angle by more than 1e-4 rad (or after max_iterations: then the current
+  iterate is kept and ``converged`` is False); Newton steps on angles and factors together then
+  take it to the stationary point of E, to ~1e-15 rad.  (The earlier MINPACK version stopped
+  where E stopped decreasing in floating point, up to ~1e-7 rad short of it, typically 5e-10.)
+  All configurations of one valence, sharp set and symmetry group are solved in one stacked
+  computation (``angle_configurations``).  The constraints are built into a chart: in every
+  sector all angles but the last are free and the last closes the sector's sum; when Lemma 2
+  applies (even n) the last two angles of one sector come from the closed form above, so the
+  condition holds exactly at every iterate.  Steps that leave (0, pi) are refused.
 * Sharp spokes (section 4.2: "the sum of angles to each side of two continuous sharp edges must
   both be pi").  r sharp spokes split the n patches into r sectors; each sector's angles sum to
   2 pi / max(r, 1): r = 2 is the paper's rule (pi and pi), r = 1 (a dart) keeps 2 pi for the
@@ -130,17 +133,16 @@ import numpy as np
 
 from patching.errors import KnotError, TagError
 from patching.options import ANGLES
-from patching.util.solve_cache import lookup
+from patching.util.memo import batching, memo
+from patching.util.solve_cache import lookup_many
 
-__all__ = ["AngleConfiguration", "angle_configuration", "MODES"]
+__all__ = ["AngleConfiguration", "angle_configuration", "angle_configurations", "MODES"]
 
 #: The angle configurations: the choices of ``BuildOptions.angles``, defined in ``patching.options``.
 MODES = ANGLES
 _TWO_PI = 2.0 * math.pi
-_ANGLE_TOL = 1e-11  # outer-iteration stop: largest angle change (rad)
-_BAD = 1e6  # residual for a rejected step (an angle outside (0, pi))
+_OUTER_TOL = 1e-4  # the alternating scheme's stop (rad): its basin is settled; Newton on (u, s) finishes
 _SYM_WEIGHT = 1e3  # weight of the rows keeping symmetric intervals' angles symmetric
-_EPS = 4 * np.finfo(float).eps  # least_squares("lm") tolerances: near the smallest MINPACK allows
 
 
 @dataclass(frozen=True)
@@ -181,8 +183,9 @@ def angle_configuration(
 
     intervals: (n,) knot intervals d_i of the spokes, counter-clockwise, n >= 3, d_i >= 0, at
     least one face (d_i d_{i+1} > 0) of nonzero area.
-    mode: "optimized" (default angles, then the alternating least-squares of section 3.3 with
-    weight ``omega`` and at most ``max_iterations`` outer iterations, Remark 2), "default" (the
+    mode: "optimized" (default angles, then the minimum of section 3.3's E with weight
+    ``omega`` by the alternating scheme, at most ``max_iterations`` outer iterations, Remark 2;
+    see the module docstring), "default" (the
     heuristic angles, perturbed for Lemma 2 when n is even) or "uniform" (theta = 2 pi / n, the
     baseline of [SSEL13]: b_i = -2 d_{i-1} d_{i+1} cos(2 pi / n)).
     sharp_spokes: indices of spokes that are sharp (C0) edges (section 4.2); see the module
@@ -192,16 +195,54 @@ def angle_configuration(
     max_iterations, sharp spokes), so identical EPs are solved once; the computation uses the
     rounded intervals.  Raises KnotError for bad intervals, TagError for bad sharp spokes.
     """
+    _validated_options(mode, omega, max_iterations)
+    return _mapped(*_problem(intervals, mode, omega, max_iterations, sharp_spokes))
+
+
+def angle_configurations(
+    rows: Sequence[Sequence[float]],
+    mode: str = "optimized",
+    omega: float = 2.0,
+    max_iterations: int = 200,
+    sharp_spokes: Sequence[int] = (),
+) -> list[AngleConfiguration]:
+    """``angle_configuration`` of every row of ``rows`` (each an EP's spoke intervals), the
+    same results; the configurations not solved yet whose canonical problems share a valence,
+    sharp set and symmetry group are optimised together (one stacked solve), unless
+    ``patching.util.memo.set_batching(False)`` asks for one at a time."""
+    _validated_options(mode, omega, max_iterations)
+    problems = [_problem(row, mode, omega, max_iterations, sharp_spokes) for row in rows]
+    if batching():
+        todo = []
+        fresh = list(dict.fromkeys(args for args in problems if not _mapped.known(args)))
+        _canonical_many([(args[0], args[4]) for args in fresh])
+        for args in fresh:
+            (dc, sharp_c), _, _ = _canonical(args[0], args[4])
+            canonical = (dc, mode, float(omega), int(max_iterations), sharp_c)
+            if not _cached.known(canonical):
+                todo.append(canonical)
+        todo = list(dict.fromkeys(todo))
+        for args, config in zip(todo, _solve_canonical(todo) if todo else []):
+            _cached.prime(args, config)
+    return [_mapped(*args) for args in problems]
+
+
+def _validated_options(mode: str, omega: float, max_iterations: int) -> None:
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
     if not (math.isfinite(omega) and omega > 0):
         raise ValueError(f"omega must be a positive number, not {omega!r}")
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"max_iterations must be a positive integer, not {max_iterations!r}")
+
+
+def _problem(intervals, mode, omega, max_iterations, sharp_spokes) -> tuple:
+    """The cache key of one EP: (intervals rounded to 12 significant digits, mode, omega,
+    max_iterations, sharp spokes), validated."""
     d = _validated_intervals(intervals)
     sharp = _validated_sharp(sharp_spokes, d.size)
     key = tuple(float(f"{x:.12g}") for x in d)
-    return _mapped(key, mode, float(omega), int(max_iterations), sharp)
+    return key, mode, float(omega), int(max_iterations), sharp
 
 
 def _dihedral(n: int):
@@ -215,21 +256,65 @@ def _dihedral(n: int):
         yield (c - j) % n, (c - j - 1) % n
 
 
-@lru_cache(maxsize=4096)
+@lru_cache(maxsize=None)
+def _relabellings(n: int, sharp: tuple[int, ...]):
+    """The 2n relabellings of ``_dihedral`` as arrays (2n, n) (spoke maps, patch maps), each
+    one's relabelled sharp set, and the rank of those sets in tuple order (equal sets, equal
+    rank)."""
+    maps = list(_dihedral(n))
+    spokes = np.array([g for g, _ in maps])
+    patches = np.array([gp for _, gp in maps])
+    marked = set(sharp)
+    sets = [tuple(j for j, x in enumerate(g.tolist()) if x in marked) for g in spokes]
+    order = sorted(set(sets))
+    return spokes, patches, sets, np.array([order.index(x) for x in sets])
+
+
+@memo(maxsize=8192)
+def _canonical(key: tuple[float, ...], sharp: tuple[int, ...]):
+    """((intervals, sharp set) of the canonical relabelling, spoke map, patch map): the
+    lexicographically smallest (intervals, then sharp set) over rotations and reflections, the
+    first in ``_dihedral``'s order among equals."""
+    spokes, patches, sets, _ = _relabellings(len(key), sharp)
+    best = None
+    for k, g in enumerate(spokes.tolist()):  # in plain Python; _canonical_many for many EPs at once
+        cand = (tuple(key[j] for j in g), sets[k])
+        if best is None or cand < best[0]:
+            best = (cand, k)
+    return best[0], spokes[best[1]], patches[best[1]]
+
+
+def _canonical_many(problems: list[tuple[tuple[float, ...], tuple[int, ...]]]) -> None:
+    """``_canonical`` of many (intervals, sharp set) pairs, vectorised over those of one valence
+    and sharp set, put into its memo: the relabelled intervals (g, 2n, n) narrowed column by
+    column to the candidates equal to the smallest, then by the sharp sets' rank, then the
+    first; the same choice as the one-problem loop."""
+    groups: dict[tuple[int, tuple[int, ...]], list[tuple]] = {}
+    for key, sharp in problems:
+        if not _canonical.known((key, sharp)):
+            groups.setdefault((len(key), sharp), []).append(key)
+    for (n, sharp), keys in groups.items():
+        spokes, patches, sets, rank = _relabellings(n, sharp)
+        cand = np.array(keys)[:, spokes]  # (g, 2n, n)
+        alive = np.ones(cand.shape[:2], dtype=bool)
+        for col in range(n):
+            v = np.where(alive, cand[:, :, col], np.inf)
+            alive &= cand[:, :, col] == v.min(axis=1)[:, None]
+        r = np.where(alive, rank[None, :], rank.size)
+        alive &= r == r.min(axis=1)[:, None]
+        first = np.argmax(alive, axis=1)
+        for key, k, c in zip(keys, first.tolist(), cand[np.arange(len(keys)), first].tolist()):
+            _canonical.prime((key, sharp), ((tuple(c), sets[k]), spokes[k], patches[k]))
+
+
+@memo(maxsize=4096)
 def _mapped(key, mode, omega, max_iterations, sharp) -> AngleConfiguration:
     """Solve on the canonical relabelling (lexicographically smallest intervals and sharp set
     over rotations and reflections), then relabel back: results are exactly equivariant, and
     rotated or mirrored copies of one EP share one solve."""
     d = np.array(key)
     n = d.size
-    best = None
-    marked = set(sharp)
-    for g, gp in _dihedral(n):  # in plain Python: a build meets hundreds of EPs, 2n relabellings each
-        gl = g.tolist()
-        cand = (tuple(key[j] for j in gl), tuple(j for j, x in enumerate(gl) if x in marked))
-        if best is None or cand < best[0]:
-            best = (cand, g, gp)
-    (dc, sharp_c), g, gp = best
+    (dc, sharp_c), g, gp = _canonical(key, sharp)
     c = _cached(dc, mode, omega, max_iterations, sharp_c)
     theta, lengths, b = (np.empty(n) for _ in range(3))
     theta[gp] = c.theta
@@ -456,7 +541,8 @@ def _connecting_b(d: np.ndarray, theta: np.ndarray, mu: np.ndarray, st: _Structu
 
 
 class _Chart:
-    """theta(u) for the free angles u, and its Jacobian (n, f)."""
+    """Which angles are free (u), which close a sector, which are fixed (one-patch sectors) and
+    which sector holds the Lemma 2 pair; ``_BatchProblem`` evaluates theta(u) and its Jacobian."""
 
     def __init__(self, st: _Structure) -> None:
         self.st = st
@@ -475,56 +561,6 @@ class _Chart:
         self.variable = np.setdiff1d(np.arange(st.n), [j for j, _ in fixed])
         self.last = last
         self.fixed = fixed
-        self.column = {int(j): c for c, j in enumerate(self.free)}
-
-    def theta(self, u: np.ndarray) -> np.ndarray:
-        st = self.st
-        theta = np.zeros(st.n)
-        theta[self.free] = u
-        for j, total in self.fixed:
-            theta[j] = total
-        for j, others, total in self.last:
-            theta[j] = total - theta[others].sum()
-        if st.pair is not None:
-            a, b = st.pair
-            others, total = self.pair_sector
-            beta1 = total - theta[others].sum()
-            theta[a] = 0.5 * math.pi  # placeholders, excluded from beta_2
-            theta[b] = 0.5 * math.pi
-            v = theta[self.variable]
-            if not (0 < beta1 < _TWO_PI) or np.any(v <= 0) or np.any(v >= math.pi):
-                theta[b] = math.nan
-            else:
-                x = _pair_angle(beta1, _pair_beta2(theta, a, b))
-                theta[b] = x
-                theta[a] = beta1 - x
-        return theta
-
-    def valid(self, theta: np.ndarray) -> bool:
-        v = theta[self.variable]
-        return bool(np.all(np.isfinite(v)) and np.all(v > 0) and np.all(v < math.pi))
-
-    def jacobian(self, theta: np.ndarray) -> np.ndarray:
-        st = self.st
-        jac = np.zeros((st.n, self.free.size))
-        jac[self.free, np.arange(self.free.size)] = 1.0
-        for j, others, _ in self.last:
-            jac[j] = -jac[others].sum(axis=0)
-        if st.pair is not None:
-            a, b = st.pair
-            others, _ = self.pair_sector
-            beta1 = theta[a] + theta[b]
-            sign = np.where(np.arange(st.n) % 2 == a % 2, 1.0, -1.0)
-            sign[[a, b]] = 0.0
-            beta2 = _pair_beta2(theta, a, b)
-            dbeta2 = beta2 * ((sign / np.tan(theta)) @ jac)
-            dbeta1 = -jac[others].sum(axis=0)
-            e = complex(math.cos(beta1), math.sin(beta1))
-            w = 1.0 + beta2 * e
-            # x = arg w: dx = Im(dw / w), dw = e^{i beta1} (d beta2 + i beta2 d beta1)
-            jac[b] = ((e / w) * (dbeta2 + 1j * beta2 * dbeta1)).imag
-            jac[a] = dbeta1 - jac[b]
-        return jac
 
 
 # --------------------------------------------------------------------------------------------
@@ -535,118 +571,338 @@ def _objective(theta, lengths, theta_hat, l_hat, omega) -> float:
     return float(np.sum((l_hat - lengths) ** 2) + omega * np.sum((theta_hat - theta) ** 2))
 
 
-def _unit_shapes(dbar: np.ndarray, theta: np.ndarray, st: _Structure) -> tuple[np.ndarray, np.ndarray]:
-    """q = dbar m scaled to unit norm on every length chain, and the chain norms (n,)."""
-    q = dbar * _relative_lengths(theta, st)
-    norm = np.sqrt(np.bincount(st.component, q * q, st.n_components))[st.component]
-    return q / np.where(norm > 0, norm, 1.0), norm
+# --------------------------------------------------------------------------------------------
+# The batched solver: damped Gauss-Newton on the angles and the chain factors together
 
 
-class _Problem:
-    """E = ||l-hat - l||^2 + omega ||theta-hat - theta||^2 as least-squares residuals of the
-    free angles u, with l = s_c q_c(theta(u)) and the chain factors s fixed (the angle step)."""
+class _BatchProblem:
+    """E = ||l-hat - l||^2 + omega ||theta-hat - theta||^2 for g configurations of one
+    structure at once, as least-squares residuals of x = (u, s): the free angles u (the chart)
+    and the chain factors s, l = s_c q_c(theta(u)) with q_c each chain's shape (eqs. 6/7) of
+    unit norm; with symmetries, stiff rows 1e3 (theta - theta[p]) (module docstring).
+    Residuals (g, R), Jacobians (g, R, f + C); the analytic Jacobian uses
+    d log m / d theta = E cot(theta), chained through the chart."""
 
     def __init__(self, dbar, st, theta_hat, l_hat, omega, symmetries=()) -> None:
-        self.dbar, self.st, self.theta_hat, self.l_hat = dbar, st, theta_hat, l_hat
+        self.st, self.dbar, self.theta_hat, self.l_hat = st, dbar, theta_hat, l_hat
         self.sqrt_w = math.sqrt(omega)
         self.chart = _Chart(st)
-        self.same = st.component[:, None] == st.component[None, :]
-        # theta[i] = theta[perm[i]] for each symmetry of the intervals: stiff penalty rows
+        self.f = self.chart.free.size
         self.symmetries = [np.asarray(p) for p in symmetries]
-        self.n_rows = 2 * st.n + st.n * len(self.symmetries)
+        self.chains = (st.component[:, None] == np.arange(st.n_components)[None, :]).astype(float)  # (n, C)
+        self.same = (st.component[:, None] == st.component[None, :]).astype(float)
+        self.exponents = st.exponents.astype(float)
+        self.lemma = None
+        if st.pair is not None:
+            a, b = st.pair
+            sign = np.where(np.arange(st.n) % 2 == a % 2, 1.0, -1.0)
+            sign[[a, b]] = 0.0
+            self.lemma = (a, b, sign, list(self.chart.pair_sector[0]), self.chart.pair_sector[1])
 
-    def factors(self, theta: np.ndarray) -> np.ndarray:
-        """The length step: s_c = <q_c, l-hat_c> (q_c of unit norm), per spoke."""
+    def theta(self, u: np.ndarray) -> np.ndarray:
+        """theta(u) (g, n) through the chart; a row is NaN where it leaves (0, pi)."""
+        chart, st = self.chart, self.st
+        theta = np.zeros((u.shape[0], st.n))
+        theta[:, chart.free] = u
+        for j, total in chart.fixed:
+            theta[:, j] = total
+        for j, others, total in chart.last:
+            theta[:, j] = total - theta[:, others].sum(axis=1)
+        if self.lemma is not None:
+            a, b, sign, others, total = self.lemma
+            beta1 = total - theta[:, others].sum(axis=1)
+            theta[:, [a, b]] = 0.5 * math.pi  # placeholders: excluded from beta_2
+            with np.errstate(invalid="ignore", divide="ignore"):
+                beta2 = np.exp(np.log(np.abs(np.sin(theta))) @ sign)
+                x = np.arctan2(beta2 * np.sin(beta1), 1.0 + beta2 * np.cos(beta1))  # _pair_angle
+            x = np.where(x <= 0, x + math.pi, x)
+            ok = (0 < x) & (x < math.pi) & (0 < beta1 - x) & (beta1 - x < math.pi) & (0 < beta1) & (beta1 < _TWO_PI)
+            theta[:, b] = np.where(ok, x, math.nan)
+            theta[:, a] = beta1 - theta[:, b]
+        v = theta[:, chart.variable]
+        bad = ~np.all(np.isfinite(v) & (v > 0) & (v < math.pi), axis=1)
+        theta[bad] = math.nan
+        return theta
+
+    def shapes(self, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """q = dbar m of unit norm on every chain (``_unit_shapes``), (g, n); idx: the rows'
+        configurations."""
+        q = self.dbar[idx] * np.exp(np.log(np.abs(np.sin(theta))) @ self.exponents.T)
+        norm = np.sqrt((q * q) @ self.chains)[:, self.st.component]
+        return q / np.where(norm > 0, norm, 1.0)
+
+    def factors(self, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """The best chain factors for these angles, s_c = <q_c, l-hat_c>, (g, C)."""
+        return (self.shapes(theta, idx) * self.l_hat[idx]) @ self.chains
+
+    def residual(self, x: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(theta, residuals) at x (g, p) of configurations idx; the rows of an invalid x are NaN."""
+        th = self.theta(x[:, : self.f])
+        q = self.shapes(th, idx)
+        rows = [self.l_hat[idx] - x[:, self.f :][:, self.st.component] * q, self.sqrt_w * (self.theta_hat[idx] - th)]
+        rows += [_SYM_WEIGHT * (th - th[:, p]) for p in self.symmetries]
+        return th, np.concatenate(rows, axis=1)
+
+    def chart_jacobian(self, theta: np.ndarray) -> np.ndarray:
+        """d theta / d u, (g, n, f)."""
+        chart = self.chart
+        g = theta.shape[0]
+        jac = np.zeros((g, self.st.n, self.f))
+        jac[:, chart.free, np.arange(self.f)] = 1.0
+        for j, others, _ in chart.last:
+            jac[:, j] = -jac[:, others].sum(axis=1)
+        if self.lemma is not None:
+            a, b, sign, others, _ = self.lemma
+            beta1 = theta[:, a] + theta[:, b]
+            beta2 = np.exp(np.log(np.abs(np.sin(theta))) @ sign)
+            cot = np.cos(theta) / np.sin(theta)
+            dbeta2 = beta2[:, None] * np.einsum("gn,gnf->gf", sign * cot, jac)
+            dbeta1 = -jac[:, others].sum(axis=1)
+            e = np.exp(1j * beta1)
+            w = 1.0 + beta2 * e
+            jac[:, b] = ((e / w)[:, None] * (dbeta2 + 1j * beta2[:, None] * dbeta1)).imag
+            jac[:, a] = dbeta1 - jac[:, b]
+        return jac
+
+    def jacobian(self, x: np.ndarray, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """d residual / dx (g, R, p) at x with angles theta, configurations idx."""
         st = self.st
-        q, _ = _unit_shapes(self.dbar, theta, st)
-        return np.bincount(st.component, q * self.l_hat, st.n_components)[st.component]
+        p = self.chart_jacobian(theta)
+        q = self.shapes(theta, idx)
+        s = x[:, self.f :][:, st.component]
+        cot = np.cos(theta) / np.sin(theta)
+        dq = q[:, :, None] * ((self.exponents[None] * cot[:, None, :]) @ p)  # d q_raw / du over |q_raw|
+        proj = np.eye(st.n)[None] - self.same[None] * (q[:, :, None] * q[:, None, :])
+        top = np.concatenate([-(s[:, :, None] * (proj @ dq)), -(q[:, :, None] * self.chains[None])], axis=2)
+        rows = [top, np.concatenate([-self.sqrt_w * p, np.zeros((p.shape[0], st.n, st.n_components))], axis=2)]
+        rows += [np.concatenate([_SYM_WEIGHT * (p - p[:, perm]), np.zeros((p.shape[0], st.n, st.n_components))], axis=2) for perm in self.symmetries]
+        return np.concatenate(rows, axis=1)
 
-    def residual(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
-        th = self.chart.theta(u)
-        if not self.chart.valid(th):
-            return np.full(self.n_rows, _BAD)
-        q, _ = _unit_shapes(self.dbar, th, self.st)
-        sym = [_SYM_WEIGHT * (th - th[p]) for p in self.symmetries]
-        return np.concatenate([self.l_hat - s * q, self.sqrt_w * (self.theta_hat - th), *sym])
+    def gradient(self, x: np.ndarray, theta: np.ndarray, r: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """J^T r, half the gradient of E, (g, p)."""
+        return np.einsum("grp,gr->gp", self.jacobian(x, theta, idx), r)
 
-    def jacobian(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Explicit Jacobian: d log m / d theta = E cot(theta), chained through the chart."""
-        th = self.chart.theta(u)
-        p = self.chart.jacobian(th)
-        q, _ = _unit_shapes(self.dbar, th, self.st)
-        cot = np.cos(th) / np.sin(th)
-        dq = q[:, None] * ((self.st.exponents * cot[None, :]) @ p)  # d q_raw / du over |q_raw|
-        # d(q_raw / |q_raw|) = (I - q q^T) d q_raw / |q_raw|, chain by chain
-        proj = np.eye(self.st.n) - np.where(self.same, np.outer(q, q), 0.0)
-        sym = [_SYM_WEIGHT * (p - p[perm]) for perm in self.symmetries]
-        return np.vstack([-(s[:, None] * (proj @ dq)), -self.sqrt_w * p, *sym])
+    def hessian(self, x: np.ndarray, idx: np.ndarray, k: int) -> np.ndarray:
+        """Half the Hessian of E in the first k variables, by central differences of
+        ``gradient``, symmetrised, (g, k, k)."""
+        g, p = x.shape
+        h = 1e-5 * np.maximum(1.0, np.abs(x[:, :k]))
+        step = np.zeros((g, k, p))
+        step[:, np.arange(k), np.arange(k)] = h
+        both = np.concatenate([x[:, None, :] + step, x[:, None, :] - step], axis=1).reshape(2 * g * k, p)
+        rows = np.repeat(idx, 2 * k)
+        theta, r = self.residual(both, rows)
+        grad = self.gradient(both, theta, r, rows)[:, :k].reshape(g, 2, k, k)
+        hess = (grad[:, 0] - grad[:, 1]) / (2 * h[:, :, None])
+        return 0.5 * (hess + hess.transpose(0, 2, 1))
 
 
-def _optimise(dbar, st, theta0, theta_hat, l_hat, omega, max_iterations, symmetries=()):
-    """Alternating scheme of section 3.3: LM on the angles with the chain factors fixed, then
-    the factors (and so l) explicitly; returns (theta, iterations, converged).
+def _trust_region(prob: _BatchProblem, x, theta, r, todo: np.ndarray, k: int, limit: int) -> None:
+    """The opening of the angle step, in place: Levenberg-Marquardt as MINPACK's lmder takes
+    it ([Mor78], the scheme scipy's ``least_squares(method="lm")`` runs), for the first k
+    variables of the configurations ``todo``: variables scaled by the running maximum of the
+    Jacobian's column norms, a trust region of radius delta (first 100 times the scaled x, then
+    at most the first step), the step the Gauss-Newton one when it fits, else the
+    Levenberg-Marquardt step of scaled length delta (lambda by bisection on the SVD of the
+    scaled Jacobian, where lmpar iterates to 10%), taken when it gains at least 1e-4 of the
+    predicted reduction, and lmder's updates of delta and lambda.  Where E has several minima,
+    the same rules from the same start head for the same one; this stops once a taken step is
+    below 1e-4 of the scaled x (the damped Newton steps of ``_damped_newton`` finish), or after
+    ``limit`` evaluations."""
+    g, p = x.shape
+    a = np.asarray(todo)
+    if a.size == 0:
+        return
+    fnorm = np.sqrt(np.sum(r[a] ** 2, axis=1))
+    jac = prob.jacobian(x[a], theta[a], a)[:, :, :k]
+    diag = np.sqrt(np.sum(jac**2, axis=1))
+    diag[diag == 0] = 1.0
+    xnorm = np.sqrt(np.sum((diag * x[a, :k]) ** 2, axis=1))
+    delta = np.where(xnorm > 0, 100.0 * xnorm, 100.0)
+    par = np.zeros(a.size)
+    first = np.ones(a.size, dtype=bool)
+    live = np.ones(a.size, dtype=bool)
+    fresh = np.ones(a.size, dtype=bool)
+    sv = np.zeros((a.size, k))
+    vt = np.zeros((a.size, k, k))
+    cc = np.zeros((a.size, k))
+    evaluations = 0
+    while np.any(live) and evaluations < limit:
+        evaluations += 1
+        f = np.flatnonzero(live & fresh)
+        if f.size:
+            u, sv[f], vt[f] = np.linalg.svd(jac[f] / diag[f, None, :], full_matrices=False)
+            cc[f] = np.einsum("grk,gr->gk", u, r[a[f]])
+            fresh[f] = False
+        w = np.flatnonzero(live)
+        s_, c_, d_ = sv[w], cc[w], delta[w]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gn = np.sqrt(np.sum((c_ / s_) ** 2, axis=1))
+        lam = np.zeros(w.size)
+        need = ~(gn <= 1.1 * d_)
+        if np.any(need):  # ||D p(lambda)|| = delta: decreasing in lambda; bisection in log lambda
+            lo = np.full(need.sum(), -40.0)
+            hi = np.log(np.maximum(np.sqrt(np.sum((s_[need] * c_[need]) ** 2, axis=1)) / d_[need], 1e-300)) + 1.0
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                norm = np.sqrt(np.sum((s_[need] * c_[need] / (s_[need] ** 2 + np.exp(mid)[:, None])) ** 2, axis=1))
+                big = norm > d_[need]
+                lo, hi = np.where(big, mid, lo), np.where(big, hi, mid)
+            lam[need] = np.exp(0.5 * (lo + hi))
+        ps = -np.einsum("gkq,gk->gq", vt[w], s_ * c_ / (s_**2 + lam[:, None]))
+        step = np.zeros((w.size, p))
+        step[:, :k] = ps / diag[w]
+        pnorm = np.sqrt(np.sum(ps**2, axis=1))
+        delta[w] = np.where(first[w], np.minimum(delta[w], pnorm), delta[w])
+        first[w] = False
+        trial_theta, trial_r = prob.residual(x[a[w]] + step, a[w])
+        fnorm1 = np.sqrt(np.sum(trial_r**2, axis=1))
+        fnorm1 = np.where(np.isfinite(fnorm1), fnorm1, np.inf)  # out of (0, pi): lmder's huge residual
+        fn = fnorm[w]
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            actred = np.where(0.1 * fnorm1 < fn, 1.0 - (fnorm1 / fn) ** 2, -1.0)
+            t1 = np.sqrt(np.sum(np.einsum("grk,gk->gr", jac[w], step[:, :k]) ** 2, axis=1)) / fn
+            t2 = np.sqrt(lam) * pnorm / fn
+            prered = t1**2 + t2**2 / 0.5
+            dirder = -(t1**2 + t2**2)
+            ratio = np.where(prered != 0, actred / np.where(prered != 0, prered, 1.0), 0.0)
+            temp = np.where(actred >= 0, 0.5, 0.5 * dirder / (dirder + 0.5 * actred))
+        temp = np.where((0.1 * fnorm1 >= fn) | ~(temp >= 0.1), 0.1, temp)
+        shrink = ratio <= 0.25
+        grow = ~shrink & ((lam == 0) | (ratio >= 0.75))
+        delta[w] = np.where(shrink, temp * np.minimum(delta[w], pnorm / 0.1), np.where(grow, pnorm / 0.5, delta[w]))
+        par[w] = np.where(shrink, lam / temp, np.where(grow, 0.5 * lam, lam))
+        take = ratio >= 1e-4
+        t = a[w[take]]
+        x[t] += step[take]
+        theta[t], r[t] = trial_theta[take], trial_r[take]
+        fnorm[w[take]] = fnorm1[take]
+        if np.any(take):
+            wt = w[take]
+            jac[wt] = prob.jacobian(x[t], theta[t], t)[:, :, :k]
+            diag[wt] = np.maximum(diag[wt], np.sqrt(np.sum(jac[wt] ** 2, axis=1)))
+            xnorm[wt] = np.sqrt(np.sum((diag[wt] * x[t, :k]) ** 2, axis=1))
+            fresh[wt] = True
+        settled = take & (pnorm <= 1e-4 * xnorm[w])
+        stuck = delta[w] <= 1e-12 * np.maximum(xnorm[w], 1e-300)
+        live[w[settled | stuck]] = False
 
-    Lengths are written l = s_c q_c(theta) with q_c the chain's shape from eqs. (6)/(7) scaled
-    to unit norm, so the angle step changes only the shape of every chain and the length step
-    only its size.  (With the paper's l_0 = 1 normalisation instead, the two blocks are
-    strongly coupled and the alternation zig-zags: valence 16 needed more than 200 iterations;
-    now 4 to 10 are typical.)
+
+def _damped_newton(prob: _BatchProblem, x, theta, r, todo: np.ndarray, k: int, limit: int, tol: float) -> None:
+    """Minimise E over the first k variables of x for the configurations ``todo``, the others
+    fixed, in place, Levenberg-Marquardt fashion: steps solve (H + lambda I) dx = -J^T r, a step
+    is taken when it lowers E, lambda per configuration (0 at first, as MINPACK's first step is
+    the Gauss-Newton step when its trust region holds it).  H is J^T J (Gauss-Newton, as in
+    MINPACK's lmder, so that the iterates head for the same minimum) until a step of at most
+    1e-3 has been taken, then the Hessian of E (central differences of the analytic gradient),
+    which converges fast where the residual is large.  Until a step of at most ``tol`` with
+    little damping, or ``limit`` steps."""
+    g, p = x.shape
+    cost = np.sum(r * r, axis=1)
+    grad = np.zeros((g, k))
+    hess = np.zeros((g, k, k))
+    lam = np.zeros(g)
+    scale = np.ones(g)
+    newton = np.zeros(g, dtype=bool)  # near the minimum: the Hessian of E instead of J^T J
+    fresh = np.zeros(g, dtype=bool)
+    fresh[todo] = True
+    active = fresh.copy()
+    steps = np.zeros(g, dtype=np.int64)
+    while np.any(active):
+        idx = np.flatnonzero(active & fresh)
+        if idx.size:
+            jac = prob.jacobian(x[idx], theta[idx], idx)[:, :, :k]
+            grad[idx] = np.einsum("grp,gr->gp", jac, r[idx])
+            hess[idx] = np.einsum("grp,grq->gpq", jac, jac)
+            near = idx[newton[idx]]
+            if near.size:
+                hess[near] = prob.hessian(x[near], near, k)
+            scale[idx] = np.maximum(np.max(np.abs(np.diagonal(hess[idx], axis1=1, axis2=2)), axis=1), 1e-300)
+            fresh[idx] = False
+        a = np.flatnonzero(active)
+        damped = hess[a] + lam[a, None, None] * np.eye(k)
+        definite = np.linalg.eigvalsh(damped)[:, 0] > 0
+        dx = np.zeros((a.size, p))
+        dx[definite, :k] = -np.linalg.solve(damped[definite], grad[a[definite]][:, :, None])[:, :, 0]
+        trial_theta, trial_r = prob.residual(x[a] + dx, a)
+        trial = np.sum(trial_r * trial_r, axis=1)
+        ok = definite & (trial < cost[a])  # NaN (a step out of (0, pi)) is never taken
+        size = np.where(definite, np.max(np.abs(dx), axis=1), np.inf)
+        take = a[ok]
+        x[take] += dx[ok]
+        theta[take], r[take], cost[take] = trial_theta[ok], trial_r[ok], trial[ok]
+        steps[a] += 1
+        done = ((size <= tol) & (lam[a] < 1e-2 * scale[a])) | (steps[a] >= limit)  # a small step, not a small damped one
+        newton[take[size[ok] <= 1e-3]] = True
+        lam[take] *= 0.1
+        fresh[take] = True
+        lam[a[~ok]] = np.maximum(10.0 * lam[a[~ok]], 1e-3 * scale[a[~ok]])
+        active[a[done]] = False
+
+
+def _optimise_batch(dbar, st, theta0, theta_hat, l_hat, omega, max_iterations, symmetries=()):
+    """The minimum of section 3.3's E for g configurations of one structure (valence, sharp
+    spokes, symmetries) at once; arrays (g, n).  Returns (theta (g, n), outer iterations (g,),
+    converged (g,)).
+
+    The alternating scheme of Remark 2, with the lengths l = s_c q_c(theta) (q_c each chain's
+    shape from eqs. (6)/(7), of unit norm; s_c its factor): the angle step minimises E over the
+    free angles u with the factors fixed (damped Newton, ``_damped_newton``), the length step
+    sets s_c = <q_c, l-hat_c>; until an outer iteration moves no angle by more than 1e-9 rad
+    (or after max_iterations: then the current iterate is kept and ``converged`` is False).
+    It starts from the default angles as the paper's scheme does, so it ends in the same
+    minimum.  The scheme stops where E is stationary in u with s fixed and in s with u fixed,
+    i.e. at a stationary point of E(u, s); Newton steps on (u, s) together then take the
+    iterate to that point, taken while they shrink and without the cost test: near a minimum
+    with a large residual E is flat to round-off over ~sqrt(eps) in the angles, but the Newton
+    step (from J^T r, not from differences of E) still points at the stationary point, so the
+    angles are located to ~1e-15 rad instead of stopping ~1e-8 away where E stops decreasing.
+    Every step is one stacked computation over the g configurations (Jacobians, Hessians by
+    central differences of the analytic gradient, eigenvalue tests, solves).
     """
-    from scipy.optimize import least_squares  # here: importing scipy.optimize costs a small build ~0.4 s
-
-    prob = _Problem(dbar, st, theta_hat, l_hat, omega, symmetries)
-    chart = prob.chart
-    if chart.free.size == 0:
-        return theta0, 0, True
-    theta = theta0
-    s = prob.factors(theta)
-    cost = float(np.sum(prob.residual(theta[chart.free], s) ** 2))
-    if cost < 1e-24 * st.n:
-        return theta, 0, True  # already optimal (valence 4: the NURBS configuration)
-    for it in range(1, max_iterations + 1):
-        sol = least_squares(
-            prob.residual, theta[chart.free], jac=prob.jacobian, args=(s,), method="lm", xtol=_EPS, ftol=_EPS, gtol=_EPS
-        )
-        u, step_cost = sol.x, 2 * sol.cost
-        for _ in range(3):  # Gauss-Newton polish: LM stops on cost reduction, with u known to
-            # ~sqrt(eps) only; J du = -r goes further while it still lowers the cost.
-            du = np.linalg.lstsq(prob.jacobian(u, s), -prob.residual(u, s), rcond=None)[0]
-            trial = float(np.sum(prob.residual(u + du, s) ** 2))
-            if not trial < step_cost:
-                break
-            u, step_cost = u + du, trial
-        new = chart.theta(u)
-        if not chart.valid(new):  # pragma: no cover - LM returns its best accepted point
+    g, n = theta0.shape
+    prob = _BatchProblem(dbar, st, theta_hat, l_hat, omega, symmetries)
+    f = prob.f
+    iterations = np.zeros(g, dtype=np.int64)
+    converged = np.ones(g, dtype=bool)
+    if f == 0:
+        return theta0.copy(), iterations, converged
+    every = np.arange(g)
+    x = np.concatenate([theta0[:, prob.chart.free], prob.factors(theta0, every)], axis=1)
+    theta, r = prob.residual(x, every)
+    active = ~(np.sum(r * r, axis=1) < 1e-24 * n)  # already optimal (valence 4: the NURBS configuration)
+    while np.any(active):
+        a = np.flatnonzero(active)
+        before = theta[a].copy()
+        _trust_region(prob, x, theta, r, a, f, 100)  # the angle step: lmder's path to its minimum,
+        _damped_newton(prob, x, theta, r, a, f, 100, _OUTER_TOL)  # then Newton steps to it
+        x[a, f:] = prob.factors(theta[a], a)  # the length step
+        theta[a], r[a] = prob.residual(x[a], a)
+        iterations[a] += 1
+        done = np.max(np.abs(theta[a] - before), axis=1) < _OUTER_TOL
+        over = (iterations[a] >= max_iterations) & ~done
+        converged[a[over]] = False
+        active[a[done | over]] = False
+    # Newton on (u, s) to the stationary point, while the steps shrink
+    polish = np.flatnonzero(converged & (iterations > 0))
+    last = np.full(g, np.inf)
+    p = x.shape[1]
+    for _ in range(8):
+        if polish.size == 0:
             break
-        step = float(np.max(np.abs(new - theta)))
-        theta = new
-        s = prob.factors(theta)
-        new_cost = float(np.sum(prob.residual(theta[chart.free], s) ** 2))
-        # Stop on a small angle step (the paper's rule), or when an outer iteration no longer
-        # lowers E in floating point (a large-residual minimum is located to ~sqrt(eps) only).
-        if step < _ANGLE_TOL or not new_cost < cost * (1 - 4 * np.finfo(float).eps):
-            return theta, it, True
-        cost = new_cost
-    return theta, max_iterations, False  # Remark 2: keep the current iterate
-
-
-def _optimise_cached(problem: tuple, dbar, st, *args):
-    """``_optimise`` through the persistent cache of ``patching.util.solve_cache`` (when one is
-    installed): an entry is trusted only if its angles are in (0, pi) and close every sector."""
-
-    def solve():
-        theta, iterations, converged = _optimise(dbar, st, *args)
-        return theta, np.array([iterations, float(converged)])
-
-    def valid(arrays) -> bool:
-        theta, info = arrays
-        return (
-            theta.shape == (st.n,) and info.shape == (2,) and bool(np.all((theta > 0) & (theta < math.pi)))
-            and all(abs(theta[list(sector)].sum() - total) <= 1e-12 for sector, total in zip(st.sectors, st.sums))
-        )
-
-    theta, info = lookup("angle_configuration", problem, 2, solve, valid)
-    return theta, int(info[0]), bool(info[1])
+        grad = prob.gradient(x[polish], theta[polish], r[polish], polish)
+        hess = prob.hessian(x[polish], polish, p)
+        # pinv: a chain of zero intervals leaves E unchanged by its factor (no step there)
+        dx = -np.einsum("gpq,gq->gp", np.linalg.pinv(hess, rcond=1e-13, hermitian=True), grad)
+        size = np.max(np.abs(dx), axis=1)
+        trial_theta, trial_r = prob.residual(x[polish] + dx, polish)
+        ok = (size < 0.5 * last[polish]) & np.all(np.isfinite(trial_r), axis=1)
+        take = polish[ok]
+        x[take] += dx[ok]
+        theta[take], r[take] = trial_theta[ok], trial_r[ok]
+        last[take] = size[ok]
+        polish = take[size[ok] > 1e-15]
+    return theta, iterations, converged
 
 
 def _symmetrised(theta: np.ndarray, symmetries, st: _Structure) -> np.ndarray:
@@ -661,16 +917,39 @@ def _symmetrised(theta: np.ndarray, symmetries, st: _Structure) -> np.ndarray:
     return theta
 
 
-@lru_cache(maxsize=4096)
-def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int, sharp: tuple[int, ...]) -> AngleConfiguration:
+def _symmetries(d: np.ndarray, sharp: tuple[int, ...]) -> list[np.ndarray]:
+    """The patch maps of the non-trivial rotations and reflections that keep the intervals and
+    the sharp set."""
+    n = d.size
+    return [
+        gp for g, gp in _dihedral(n)
+        if np.any(g != np.arange(n)) and np.array_equal(d[g], d) and set(g[list(sharp)].tolist()) == set(sharp)
+    ]
+
+
+@dataclass
+class _Prepared:
+    """One canonical configuration before its optimisation: what ``_finish`` needs, and
+    whether the angles still have to be optimised (``theta`` None)."""
+
+    d: np.ndarray
+    st: _Structure
+    dbar: np.ndarray
+    theta_hat: np.ndarray
+    theta_default: np.ndarray
+    l_hat: np.ndarray
+    symmetries: list
+    theta: np.ndarray | None
+
+
+def _prepare(key: tuple[float, ...], mode: str, sharp: tuple[int, ...]) -> _Prepared:
     d = np.array(key)
     n = d.size
     st = _structure(n, sharp)
-    mean = d.mean()
-    dbar = d / mean
+    dbar = d / d.mean()
     theta_hat, theta_default = _default_angles(dbar, st)
     l_hat = _default_lengths(dbar, theta_hat)
-    iterations, converged = 0, True
+    symmetries, theta = [], None
     if mode == "uniform" or (len(sharp) <= 1 and np.all(d == d[0])):
         # [SSEL13]; and for equal intervals every mode: the heuristic gives equal angles, equal
         # l-hat, and E = 0 there, so 2 pi / n exactly (within each sector if sharp).
@@ -684,18 +963,17 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
         # default mode's even-n perturbation of "the last two angles" breaks a symmetry too
         # (e.g. 1, 1, 1, 1, 2, 2), and averaging it breaks Lemma 2: for symmetric intervals
         # with a Lemma 2 pair the default mode takes the symmetric optimum instead.
-        symmetries = [
-            gp for g, gp in _dihedral(n)
-            if np.any(g != np.arange(n)) and np.array_equal(d[g], d) and set(g[list(sharp)].tolist()) == set(sharp)
-        ]
+        symmetries = _symmetries(d, sharp)
         if mode == "default" and not (symmetries and st.pair is not None):
             theta = theta_default
-        else:
-            theta, iterations, converged = _optimise_cached(
-                (key, mode, omega, max_iterations, sharp), dbar, st, theta_default, theta_hat, l_hat, omega, max_iterations, symmetries
-            )
-        if symmetries:
-            theta = _symmetrised(theta, symmetries, st)
+    return _Prepared(d, st, dbar, theta_hat, theta_default, l_hat, symmetries, theta)
+
+
+def _finish(prep: _Prepared, theta: np.ndarray, mode: str, omega: float, iterations: int, converged: bool) -> AngleConfiguration:
+    d, st, dbar, l_hat = prep.d, prep.st, prep.dbar, prep.l_hat
+    n = d.size
+    if prep.symmetries:
+        theta = _symmetrised(theta, prep.symmetries, st)
     m = _relative_lengths(theta, st)
     if mode == "uniform":
         # [SSEL13]: one factor for every chain, l_i proportional to d_i (m = 1 without sharp spokes)
@@ -704,10 +982,10 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
     else:
         s = _fit_factors(dbar * m, l_hat, st)
     lengths = s * dbar * m
-    objective = _objective(theta, lengths, theta_hat, l_hat, omega)
+    objective = _objective(theta, lengths, prep.theta_hat, l_hat, omega)
     arrays = {
         "theta": theta,
-        "lengths": lengths * mean,
+        "lengths": lengths * d.mean(),
         "b": _connecting_b(d, theta, s * m, st),
         "alpha": d * np.roll(d, 1),
         "gamma": d * np.roll(d, -1),
@@ -715,5 +993,56 @@ def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int
     for v in arrays.values():
         v.setflags(write=False)
     return AngleConfiguration(
-        mode=mode, converged=converged, iterations=iterations, sharp_spokes=sharp, objective=objective, **arrays
+        mode=mode, converged=converged, iterations=iterations, sharp_spokes=st.sharp, objective=objective, **arrays
     )
+
+
+def _angles_valid(args: tuple, arrays: list[np.ndarray]) -> bool:
+    """A stored optimisation is trusted only if its angles are in (0, pi) and close every sector."""
+    key, _, _, _, sharp = args
+    st = _structure(len(key), sharp)
+    theta, info = arrays
+    return (
+        theta.shape == (st.n,) and info.shape == (2,) and bool(np.all((theta > 0) & (theta < math.pi)))
+        and all(abs(theta[list(sector)].sum() - total) <= 1e-12 for sector, total in zip(st.sectors, st.sums))
+    )
+
+
+def _solve_canonical(args_list: list[tuple]) -> list[AngleConfiguration]:
+    """The configurations of canonical problems (key, mode, omega, max_iterations, sharp): the
+    optimisations of one structure and symmetry group solved together (``_optimise_batch``),
+    through the persistent cache of ``patching.util.solve_cache`` when one is installed."""
+    prepared = [_prepare(key, mode, sharp) for key, mode, _, _, sharp in args_list]
+    groups: dict[tuple, list[int]] = {}
+    for i, prep in enumerate(prepared):
+        if prep.theta is None:
+            shape = (prep.st.n, prep.st.sharp, tuple(tuple(p.tolist()) for p in prep.symmetries))
+            groups.setdefault(shape, []).append(i)
+    solved: dict[int, tuple[np.ndarray, int, bool]] = {}
+    for members in groups.values():
+        first = prepared[members[0]]
+
+        def solve_many(todo: list[tuple], members=members, first=first) -> list[list[np.ndarray]]:
+            index = {args_list[i]: i for i in members}
+            preps = [prepared[index[args]] for args in todo]
+            _, _, omega, max_iterations, _ = todo[0]
+            theta, iterations, converged = _optimise_batch(
+                np.array([p.dbar for p in preps]), first.st, np.array([p.theta_default for p in preps]),
+                np.array([p.theta_hat for p in preps]), np.array([p.l_hat for p in preps]), omega, max_iterations,
+                first.symmetries,
+            )
+            return [[t, np.array([k, float(c)])] for t, k, c in zip(theta, iterations, converged)]
+
+        todo = [args_list[i] for i in members]
+        for i, (theta, info) in zip(members, lookup_many("angle_configuration", todo, 2, solve_many, _angles_valid)):
+            solved[i] = (theta, int(info[0]), bool(info[1]))
+    out = []
+    for i, (prep, (_, mode, omega, _, _)) in enumerate(zip(prepared, args_list)):
+        theta, iterations, converged = solved.get(i, (prep.theta, 0, True))
+        out.append(_finish(prep, theta, mode, omega, iterations, converged))
+    return out
+
+
+@memo(maxsize=4096)
+def _cached(key: tuple[float, ...], mode: str, omega: float, max_iterations: int, sharp: tuple[int, ...]) -> AngleConfiguration:
+    return _solve_canonical([(key, mode, omega, max_iterations, sharp)])[0]

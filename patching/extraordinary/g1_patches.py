@@ -97,7 +97,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-from patching.extraordinary.angle_configuration import angle_configuration
+from patching.extraordinary.angle_configuration import angle_configurations
 from patching.topology.features import CORNER_SECTOR, CREASE_SECTOR, Features
 from patching.extraordinary.g1_constraints import a_slot, b_slot, r_slot, spoke_equations, spoke_equations_batch
 from patching.surface import CORNER_PARAMETERS
@@ -1013,7 +1013,7 @@ class G1Assembly:
         for g in groups:
             if g.theta is None:
                 uniq, inverse = _unique_rows(g.d)
-                b = np.array([-np.asarray(angle_configuration(row, mode=angles).b) for row in uniq])
+                b = np.array([-np.asarray(c.b) for c in angle_configurations(uniq, mode=angles)])
                 b0 = b[inverse].reshape(g.d.shape)  # beta(0) per spoke (g1_constraints sign)
             else:
                 b0 = _sector_beta(g)

@@ -1,9 +1,9 @@
 """A persistent cache of solved local configurations, behind a store the caller installs.
 
 Some local problems of a build are solved numerically and cost far more than their size
-suggests in a fresh process: the angle configurations of [FSLYJ] sec. 3.3 run MINPACK's
-Levenberg-Marquardt (and importing ``scipy.optimize`` alone is ~0.5 s of CPU on a 2-core
-machine, a fifth of a small build).  Their inputs are few numbers (valence, interval pattern,
+suggests in a fresh process: the angle configurations of [FSLYJ] sec. 3.3 are small
+optimisations, the eigen-structures of [TLC] sec. 3 and the G1 operators of [FSLYJ] sec. 3.4
+stacked LAPACK calls.  Their inputs are few numbers (valence, interval pattern,
 sharp spokes, options), so a solved configuration can be kept between processes.
 
 ``patching`` writes no files: it asks the installed store (``set_store``; none by default, so
