@@ -27,11 +27,15 @@ import numpy as np
 
 from patching.surface import BezierSurface
 
-__all__ = ["Block", "MAX_SIDE", "Spline", "block_neighbours", "find_blocks", "block_poles", "block_boundary", "edge_chains",
+__all__ = ["Block", "MAX_SIDE", "MAX_PATCHES", "Spline", "block_neighbours", "find_blocks", "block_poles", "block_boundary", "edge_chains",
            "knot_multiplicities", "bezier_matrix", "reduce_curve", "reduce_block"]
 
-#: Blocks have at most this many patches a side (keeps each face's pole grid moderate).
-MAX_SIDE = 128
+#: Blocks have at most this many patches a side, and at most MAX_PATCHES patches (the Bézier
+#: form of a block, (3 w + 1) (3 h + 1) poles, is what the knot removal starts from).  Along a
+#: semi-sharp crease a ring of level-6 leaves is 64 patches a control-mesh edge, and its knots
+#: there are removed: one face a ring, not one every two edges.
+MAX_SIDE = 4096
+MAX_PATCHES = 128 * 128
 
 
 @dataclass(frozen=True)
@@ -92,10 +96,10 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
     """Rectangular blocks of at least 2 bicubic patches, grown greedily from each free patch
     in row order.
 
-    From a seed patch the block grows along its s direction across side 1 while the next
-    patch is bicubic and free, then row by row across side 2 while every patch above is
-    bicubic, free and the rows stay a grid (the patch right of each one is the next one
-    above).  Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the
+    From a seed patch the block grows along its s direction, across side 1 and then across
+    side 3, while the next patch is bicubic and free, then row by row across side 2 and then
+    across side 0 while every patch of the new row is bicubic, free and the rows stay a grid
+    (the patch right of each one is the next one of the row).  Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the
     net, spans swapped).  No side on a block's boundary faces a patch of the same block (a
     full ring of a torus, or a helix of patches on a twisted one), so that no packed face
     meets itself along a seam; a block whose knot intervals do not form one grid is dropped.
@@ -113,9 +117,10 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             return None
         return int(r), int((s - (side + 2)) % 4)  # its side s plays the opposite block side
 
-    def faces_block(cells, sides, block: set) -> bool:
-        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block``."""
-        return any((x := across(r, t, k)) is not None and x[0] in block for r, t in cells for k in sides)
+    def faces_block(cells, sides, block: set, extra=()) -> bool:
+        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block`` (or
+        is one of ``extra``)."""
+        return any((x := across(r, t, k)) is not None and (x[0] in block or x[0] in extra) for r, t in cells for k in sides)
 
     blocks = []
     for seed in range(p):
@@ -123,33 +128,41 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             continue
         row0 = [(seed, 0)]
         taken = {seed}
-        while len(row0) < MAX_SIDE:
-            nxt = across(*row0[-1], 1)
-            if nxt is None or not free[nxt[0]] or nxt[0] in taken:
-                break
-            # Its sides 0, 1, 2 stay on the block's boundary (or become inner sides towards
-            # patches not yet taken): none may face the row itself (a ring closes at side 1).
-            if faces_block([nxt], (0, 1, 2), taken | {nxt[0]}):
-                break
-            row0.append(nxt)
-            taken.add(nxt[0])
+        # Along s both ways: across side 1 from the row's end, then across side 3 from its start
+        # (patches come in no order along a ring: grown one way only, a ring of fine leaves
+        # broke into pieces one coarse face long).  The new patch's sides other than the one
+        # towards the row stay on the block's boundary (or become inner sides towards patches
+        # not yet taken): none may face the row itself (a ring closes there).
+        for side, outer in ((1, (0, 1, 2)), (3, (0, 2, 3))):
+            while len(row0) < MAX_SIDE:
+                nxt = across(*row0[-1 if side == 1 else 0], side)
+                if nxt is None or not free[nxt[0]] or nxt[0] in taken:
+                    break
+                if faces_block([nxt], outer, taken, (nxt[0],)):
+                    break
+                row0.insert(len(row0) if side == 1 else 0, nxt)
+                taken.add(nxt[0])
         grid = [row0]
-        while len(grid) < MAX_SIDE:
-            above = [across(r, t, 2) for r, t in grid[-1]]
-            if any(a is None or not free[a[0]] or a[0] in taken for a in above):
-                break
-            ids = [a[0] for a in above]
-            if len(set(ids)) != len(ids):
-                break
-            # A grid: right of each patch above is the next one above.
-            if any(across(*above[i], 1) != above[i + 1] for i in range(len(above) - 1)):
-                break
-            # The new row's outer sides: 2 of every patch, 3 of the first and 1 of the last.
-            block = taken | set(ids)
-            if faces_block(above, (2,), block) or faces_block(above[:1], (3,), block) or faces_block(above[-1:], (1,), block):
-                break
-            grid.append(above)
-            taken.update(ids)
+        # Rows across side 2 above the last one, then across side 0 below the first.
+        for side in (2, 0):
+            while len(grid) < MAX_SIDE and len(grid) * len(row0) < MAX_PATCHES:
+                edge_row = grid[-1] if side == 2 else grid[0]
+                nxt_row = [across(r, t, side) for r, t in edge_row]
+                if any(a is None or not free[a[0]] or a[0] in taken for a in nxt_row):
+                    break
+                ids = [a[0] for a in nxt_row]
+                if len(set(ids)) != len(ids):
+                    break
+                # A grid: right of each new patch is the next new one.
+                if any(across(*nxt_row[i], 1) != nxt_row[i + 1] for i in range(len(nxt_row) - 1)):
+                    break
+                # The new row's outer sides: ``side`` of every patch, 3 of the first and 1 of the last.
+                new = set(ids)
+                if (faces_block(nxt_row, (side,), taken, new) or faces_block(nxt_row[:1], (3,), taken, new)
+                        or faces_block(nxt_row[-1:], (1,), taken, new)):
+                    break
+                grid.insert(len(grid) if side == 2 else 0, nxt_row)
+                taken.update(ids)
         if len(taken) < 2:
             continue
         rows = np.array([[r for r, _ in line] for line in grid], dtype=np.int64).T  # (w, h)
@@ -397,6 +410,49 @@ def _fit_map(x: np.ndarray, mults: np.ndarray, p: int) -> _FitMap:
     return _cached_fit_map(((x - x[0]) / (x[-1] - x[0])).tobytes(), np.asarray(mults, dtype=np.int64).tobytes(), p)
 
 
+def kept_knots(along: np.ndarray, x: np.ndarray, tol: float, exact: float) -> np.ndarray | None:
+    """(n - 1,) multiplicities of the interior breakpoints x (n + 1,) of n Bézier spans along
+    (n, p + 1, m, c) such that the least-squares B-spline on them gives back every span to
+    ``exact``: ``knot_multiplicities`` (necessary, not sufficient: jumps below the tolerance
+    at each of 500 fine knots add up, on a ring of level-9 leaves near extraordinary points,
+    to 1e-9 of the size over the merged span), then, while a merged span is off, its middle
+    removed knot put back at multiplicity 1 (the joins there are C2), bisecting, and a span
+    that is off alone between kept knots raising them by one.  None if a span is still off
+    with its knots at multiplicity p (the Bézier form, which the caller takes then)."""
+    n, p1, m, c = along.shape
+    p = p1 - 1
+    x = np.asarray(x, dtype=np.float64)
+    mults = knot_multiplicities(along, np.diff(x), tol)
+    target = np.concatenate([along[:, :-1].reshape(n * p, m * c), along[-1:, -1].reshape(1, m * c)])
+    rows = np.arange(n)[:, None] * p + np.arange(p1)
+    for _ in range(64):
+        if not np.any(mults == 0):
+            return mults
+        fit = _fit_map(x, mults, p)
+        back = (fit.a @ fit.solve(target))[rows].reshape(n, p1, m, c)
+        bad = np.sqrt(((back - along) ** 2).sum(axis=-1)).max(axis=(1, 2)) > exact  # (n,)
+        if not bad.any():
+            return mults
+        kept = np.concatenate([[0], np.flatnonzero(mults > 0) + 1, [n]])  # segment ends (breakpoints)
+        segment = np.searchsorted(kept, np.flatnonzero(bad), side="right") - 1
+        changed = False
+        for s in np.unique(segment).tolist():
+            lo, hi = int(kept[s]), int(kept[s + 1])
+            if hi - lo >= 2:
+                mults[(lo + hi) // 2 - 1] = 1
+                changed = True
+                continue
+            # One span, no knot removed in it: off through the fit of its neighbours (least
+            # squares spreads), or its end knots were lowered too far (a C2 jump below the
+            # tolerance), which raising them mends.
+            ends = [k - 1 for k in (lo, hi) if 0 < k < n and mults[k - 1] < p]
+            mults[ends] += 1
+            changed |= bool(ends)
+        if not changed:
+            return None
+    return None
+
+
 def reduce_curve(rows: np.ndarray, x: np.ndarray, tol: float, exact: float) -> Spline:
     """The fewest-knot B-spline equal to the Bézier rows (n, p + 1, c), row i on [x_i,
     x_{i+1}]: knots removed where the joins allow (text above), the poles fitted and checked
@@ -407,9 +463,9 @@ def reduce_curve(rows: np.ndarray, x: np.ndarray, tol: float, exact: float) -> S
     n, p1, c = rows.shape
     p = p1 - 1
     x = np.asarray(x, dtype=np.float64)
-    m = knot_multiplicities(rows[:, :, None, :], np.diff(x), tol)
     target = np.concatenate([rows[:, :-1].reshape(-1, c), rows[-1:, -1]])
-    for mults in (m, np.maximum(m, 1)):
+    m = kept_knots(rows[:, :, None, :], x, tol, exact)
+    for mults in [] if m is None else [m, np.maximum(m, 1)]:
         fit = _fit_map(x, mults, p)
         poles = fit.solve(target)
         spans = (fit.a @ poles)[np.arange(n)[:, None] * p + np.arange(p1)]
@@ -438,7 +494,11 @@ def reduce_block(block: Block, nets, tol: float, exact: float) -> Spline | None:
     u, v = block.knots
     along_u = turned.transpose(0, 2, 1, 3, 4).reshape(w, 4, 4 * h, 3)
     along_v = turned.transpose(1, 3, 0, 2, 4).reshape(h, 4, 4 * w, 3)
-    mu, mv = knot_multiplicities(along_u, block.du, tol), knot_multiplicities(along_v, block.dv, tol)
+    # each direction to a quarter of the bound, so that the tensor product of the two fits
+    # passes the check on the whole block as a rule
+    mu, mv = kept_knots(along_u, u, tol, exact / 4), kept_knots(along_v, v, tol, exact / 4)
+    mu = np.full(w - 1, 1, dtype=np.int64) if mu is None else mu  # then the C2 form, or the Bézier form
+    mv = np.full(h - 1, 1, dtype=np.int64) if mv is None else mv
     ru, rv = np.arange(w)[:, None] * 3 + np.arange(4), np.arange(h)[:, None] * 3 + np.arange(4)
 
     def fits(mu_, mv_):
