@@ -61,7 +61,8 @@ def join_multiplicities(block, nets, direction: int, size: float) -> list[int]:
     """Per inner join of the block along u (direction 0) or v (1): 3 - k for the highest order
     k <= 3 to which the patches on both sides agree, from OpenCASCADE's D3 of each patch as a
     Bézier face, in the block's parameters (derivative k divided by the span length to the
-    k), at 5 points along every join; 0 where they agree to order 3 (one cubic: no knot).
+    k), at t = 0, 1/3, 2/3, 1 along every join (each jump is a cubic in t: those four values
+    are all of it); 0 where they agree to order 3 (one cubic: no knot).
     A jump counts below 1e-9 of the size times the shorter span to the k (round-off is 1e-15,
     a real jump 1e-4 or more on these meshes)."""
     from OCP.gp import gp_Pnt, gp_Vec
@@ -70,6 +71,7 @@ def join_multiplicities(block, nets, direction: int, size: float) -> list[int]:
 
     w, h = block.rows.shape
     spans = (block.du, block.dv)[direction]
+    faces = {}  # (i, j) -> the patch as a Bézier face in the block's frame
     out = []
     for i in range(len(spans) - 1):
         order = 3
@@ -77,18 +79,20 @@ def join_multiplicities(block, nets, direction: int, size: float) -> list[int]:
             cells = ((i, j), (i + 1, j)) if direction == 0 else ((j, i), (j, i + 1))
             derivs = []
             for side, (a, b) in enumerate(cells):
-                net = np.rot90(nets[int(block.rows[a, b])], -int(block.turns[a, b]), axes=(0, 1))
-                face = bezier_surface(np.ascontiguousarray(net))
+                if (a, b) not in faces:
+                    net = np.rot90(nets[int(block.rows[a, b])], -int(block.turns[a, b]), axes=(0, 1))
+                    faces[a, b] = bezier_surface(np.ascontiguousarray(net))
+                face = faces[a, b]
                 length = spans[i + side]
                 rows = []
-                for t in np.linspace(0.0, 1.0, 5):
+                for t in (0.0, 1 / 3, 2 / 3, 1.0):
                     p, vs = gp_Pnt(), [gp_Vec() for _ in range(9)]
                     at = (1.0 - side, t) if direction == 0 else (t, 1.0 - side)
                     face.D3(*at, p, *vs)
                     # D1U D1V D2U D2V D2UV D3U D3V D3UUV D3UVV
                     along = (vs[0], vs[2], vs[5]) if direction == 0 else (vs[1], vs[3], vs[6])
                     rows.append([np.array(p.Coord())] + [np.array(v.Coord()) / length ** (n + 1) for n, v in enumerate(along)])
-                derivs.append(np.array(rows))  # (5, 4, 3)
+                derivs.append(np.array(rows))  # (4, 4, 3)
             r = min(spans[i], spans[i + 1])
             jumps = np.linalg.norm(derivs[0] - derivs[1], axis=-1).max(axis=0) * r ** np.arange(4)
             agree = np.flatnonzero(jumps > 1e-9 * size)

@@ -173,3 +173,24 @@ def test_build_packs_adaptive_meshes_by_default(tmp_path, run_cli):
     faces = [p.read_text().count("ADVANCED_FACE(") for p in (packed, plain)]
     assert faces[1] == 3072 and faces[0] < 3072 / 8
     assert packed.stat().st_size < 5e6 < plain.stat().st_size
+
+
+@pytest.mark.skipif(not PATHS, reason="../shared/opensubdiv-shapes is absent")
+def test_packed_faces_keep_only_the_knots_the_joins_need(adaptive):
+    """Along a semi-sharp crease every level's limit is the level-0 B-spline (the rules are
+    the uniform cubic B-spline rule along the crease), so the fine leaves' knots along it go:
+    each packed face has at each join exactly the multiplicity the continuity of its patches
+    there needs (OpenCASCADE's third derivatives, ``tests.test_pack.join_multiplicities``),
+    none where one cubic goes on; and fewer poles than patches in all."""
+    from tests.test_pack import face_multiplicities, join_multiplicities
+
+    _, surface, shape, report = adaptive
+    nets = [net for _, _, _, net in surface.patches()]
+    faces = faces_of(shape)
+    poles = 0
+    for face, (block, _, _) in zip(faces, report.blocks):
+        bspline = BRep_Tool.Surface_s(face)
+        for direction in (0, 1):
+            assert face_multiplicities(bspline, block, direction) == join_multiplicities(block, nets, direction, surface.size)
+        poles += bspline.NbUPoles() * bspline.NbVPoles()
+    assert poles < report.packed_patches
