@@ -398,16 +398,20 @@ class _FitMap:
         return z + cho_solve_banded(self.factor, self.at @ (y - self.a @ z))
 
 
-@lru_cache(maxsize=1024)
+@lru_cache(maxsize=256)
 def _cached_fit_map(x: bytes, mults: bytes, p: int) -> _FitMap:
     return _FitMap(np.frombuffer(x), np.frombuffer(mults, dtype=np.int64), p)
 
 
 def _fit_map(x: np.ndarray, mults: np.ndarray, p: int) -> _FitMap:
     """``_FitMap`` of breakpoints x, the same for x and any a x + b (a > 0), so that the many
-    blocks of one pattern (two patches across a band, ...) share one."""
+    small blocks of one pattern (two patches across a band, ...) share one: those of up to 64
+    spans are kept (256 of them, at most ~50 MB), longer ones made each time."""
     x = np.asarray(x, dtype=np.float64)
-    return _cached_fit_map(((x - x[0]) / (x[-1] - x[0])).tobytes(), np.asarray(mults, dtype=np.int64).tobytes(), p)
+    mults = np.asarray(mults, dtype=np.int64)
+    if len(x) > 65:
+        return _FitMap(x, mults, p)
+    return _cached_fit_map(((x - x[0]) / (x[-1] - x[0])).tobytes(), mults.tobytes(), p)
 
 
 def kept_knots(along: np.ndarray, x: np.ndarray, tol: float, exact: float) -> np.ndarray | None:
