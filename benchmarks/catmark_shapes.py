@@ -3,7 +3,9 @@ as a whole process: control-mesh faces, patches, B-rep faces (one a patch, or fe
 against the targets (<= 30 s each; no STEP of a mesh under 1,000 faces above 5 MB).  With
 ``--before DIR`` a second checkout builds each shape right after, in the same run.  A shape that
 takes longer than ``--timeout`` seconds is stopped and reported as such.  Run by hand:
-``.venv/bin/python benchmarks/catmark_shapes.py [--timeout 120] [--before DIR] [NAME ...]``.
+``.venv/bin/python benchmarks/catmark_shapes.py [--timeout 120] [--before DIR] [--read] [NAME ...]``.
+With ``--read`` each STEP file is read back by OpenCASCADE's ``STEPControl_Reader`` (through
+``export.step.read_step``, in a process of its own): the seconds of the read alone.
 """
 
 from __future__ import annotations
@@ -41,11 +43,32 @@ def build(tree: str, mesh: Path, out: Path, timeout: float) -> tuple[str, float,
     return status, wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), patches
 
 
+READ = """
+import sys, time
+from export.step import read_step
+start, cpu = time.perf_counter(), time.process_time()
+read_step(sys.argv[1])
+print(f"{time.perf_counter() - start:.2f} {time.process_time() - cpu:.2f}")
+"""
+
+
+def read_back(tree: str, path: Path, timeout: float) -> str:
+    """'wall cpu' seconds of reading ``path`` back with ``export.step.read_step`` from ``tree``."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    try:
+        proc = subprocess.run([sys.executable, "-c", READ, str(path)], env=env, capture_output=True, text=True,
+                              timeout=timeout, cwd=path.parent)
+    except subprocess.TimeoutExpired:
+        return f"> {timeout:g} s"
+    return proc.stdout.strip() if proc.returncode == 0 else (proc.stderr.strip().splitlines() or ["failed"])[-1][:40]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("names", nargs="*", help="shape names (default: every catmark_*)")
     parser.add_argument("--timeout", type=float, default=120.0)
     parser.add_argument("--before", help="a second checkout (e.g. main's worktree)")
+    parser.add_argument("--read", action="store_true", help="time reading each STEP file back")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT))
     import patching
@@ -55,7 +78,8 @@ def main() -> None:
     if args.before:
         sides["before"] = str(Path(args.before).resolve())
     print(f"load {os.getloadavg()[0]:.1f} at the start (2 cores)")
-    print(f"{'shape':28s} {'faces':>6s} {'side':>6s} {'patches':>8s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}  status")
+    read_head = f" {'read wall, cpu s':>16s}" if args.read else ""
+    print(f"{'shape':28s} {'faces':>6s} {'side':>6s} {'patches':>8s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}{read_head}  status")
     with tempfile.TemporaryDirectory() as tmp:
         for path in paths:
             try:
@@ -69,7 +93,9 @@ def main() -> None:
                 size = out.stat().st_size / 1e6 if out.exists() else float("nan")
                 patches = out.read_text(errors="replace").count("ADVANCED_FACE(") if out.exists() else 0
                 flag = " (over 5 MB)" if faces < 1000 and size > 5 else ""
-                print(f"{path.stem:28s} {faces:6d} {side:>6s} {n_patches:8d} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}  {status}{flag}", flush=True)
+                read = f" {read_back(tree, out, args.timeout) if out.exists() else '-':>16s}" if args.read else ""
+                print(f"{path.stem:28s} {faces:6d} {side:>6s} {n_patches:8d} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}{read}  {status}{flag}",
+                      flush=True)
     print(f"load {os.getloadavg()[0]:.1f} at the end")
 
 

@@ -8,17 +8,19 @@ the patches' coefficients only (no geometry rule is recomputed):
 1. Blocks (``patching.evaluation.packing.find_blocks``): rectangular grids of bicubic patches
    joined through whole shared sides, grown greedily; a block never closes on itself (a full
    ring of a torus), so no packed face needs a seam, and never crosses a T-junction.
-2. Surface.  The block's nets become the poles of a bicubic B-spline with every interior knot
-   of multiplicity 3 (the Bézier form: exactly the patches), knots at the cumulative knot
-   intervals of the block's columns and rows (``Topology.face_spans``, the intervals
-   the patches were extracted with), so that the joins are C2 in this parametrisation; then
-   OpenCASCADE removes each interior knot down to multiplicity 1 (``RemoveUKnot``/
-   ``RemoveVKnot``), which succeeds where the join is C2 to within ``KNOT_TOLERANCE``, else
-   down to 2 (a C1 join, beside a zero interval).
-3. Check.  The packed surface is evaluated at a 5 x 5 grid of every patch of the block and
-   compared with the patch (de Casteljau via ``patching.evaluation.sampling.evaluate_nets``); a block
-   that differs by more than ``EXACTNESS`` (relative to the surface size) is not packed
-   (its patches stay Bézier faces), so the surface is never changed.
+2. Surface.  The block's nets are the Bézier form of a bicubic B-spline (every interior knot of
+   multiplicity 3), knots at the cumulative knot intervals of the block's columns and rows
+   (``Topology.face_spans``, the intervals the patches were extracted with, in level-0 units
+   on the adaptive path), in which the joins are C2; ``patching.evaluation.packing.reduce_block``
+   removes each interior knot where the spans on both sides are one polynomial (all of them
+   along a semi-sharp crease, where the subdivision is the uniform cubic B-spline rule along
+   the crease at every level), else lowers it to multiplicity 1 (C2) or 2 (C1, beside a zero
+   interval), to within ``KNOT_TOLERANCE``, and fits the poles by least squares.
+3. Check.  The fitted B-spline's Bézier form (the exact linear map, ``bezier_matrix``) is compared with every
+   patch of the block; a block that differs by more than ``EXACTNESS`` (relative to the
+   surface size) keeps its knots at multiplicity >= 1, or failing that the Bézier form, and
+   is not packed if even that is off (its patches stay Bézier faces): by the convex hull
+   property the surface is never changed by more than that.
 4. B-rep.  As ``export.brep.to_shape``, with shared vertices and edges: every patch side on a
    block's boundary keeps its own pieces (one whole edge, or the run of edges of a side split
    at T-junctions of the adaptive refinement), so neighbours, packed or not, share them, each
@@ -45,7 +47,7 @@ from patching.util.blas import one_blas_thread
 from patching.util.vectors import cross3
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
-from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, block_poles, edge_chains, find_blocks
+from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, edge_chains, find_blocks, reduce_block, reduce_curve
 
 from export.brep import (
     BrepError,
@@ -75,71 +77,32 @@ EXACTNESS = 1e-12
 
 
 def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
-    """The B-spline of a block (steps 2 and 3), or None if it is not the patches to EXACTNESS."""
-    w, h = block.rows.shape
-    turned, grid = block_poles(block, nets)
-    poles = TColgp_Array2OfPnt(1, 3 * w + 1, 1, 3 * h + 1)
-    # ~1M poles on the pawn: one gp_Pnt set and copied in (SetValue copies), no lookups per pole
+    """The B-spline of a block (steps 2 and 3): ``reduce_block``'s fewest-knot spline, checked
+    against every patch to ``EXACTNESS``, as a ``Geom_BSplineSurface``; None if not even the
+    Bézier form is the patches to that bound."""
+    spline = reduce_block(block, nets, KNOT_TOLERANCE * size, EXACTNESS * max(size, 1e-300))
+    u, v = block.knots
+    if spline is None:
+        return None, u, v, None
+    nu, nv = spline.poles.shape[:2]
+    poles = TColgp_Array2OfPnt(1, nu, 1, nv)
     set_pole, point = poles.SetValue, gp_Pnt()
     set_point = point.SetCoord
-    for a, line in enumerate(grid.tolist(), 1):
+    for a, line in enumerate(spline.poles.tolist(), 1):
         for b, (x, y, z) in enumerate(line, 1):
             set_point(x, y, z)
-            set_pole(a, b, point)
-    u, v = block.knots
-
-    def knots(values):
-        k = TColStd_Array1OfReal(1, len(values))
-        m = TColStd_Array1OfInteger(1, len(values))
-        for i, x in enumerate(values):
-            k.SetValue(i + 1, float(x))
-            m.SetValue(i + 1, 4 if i in (0, len(values) - 1) else 3)
-        return k, m
-
-    uk, um = knots(u)
-    vk, vm = knots(v)
-    bspline = Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, False, False)
-    tol = KNOT_TOLERANCE * size
-    # To multiplicity 1 (C2 join), else 2 (C1: a zero interval beside it, a double knot).
-    for i in range(len(u) - 1, 1, -1):
-        bspline.RemoveUKnot(i, 1, tol) or bspline.RemoveUKnot(i, 2, tol)
-    for j in range(len(v) - 1, 1, -1):
-        bspline.RemoveVKnot(j, 1, tol) or bspline.RemoveVKnot(j, 2, tol)
-    # Step 3: the packed surface against every patch on a 5 x 5 grid, the B-spline evaluated
-    # from OpenCASCADE's poles and knots after the removal (``_bspline_grid``).
-    s = np.linspace(0.0, 1.0, 5)
-    ss, tt = (a.ravel() for a in np.meshgrid(s, s, indexing="ij"))
-    expected = evaluate_nets(turned.reshape(-1, 4, 4, 3), ss, tt).reshape(w, h, 5, 5, 3).transpose(0, 2, 1, 3, 4)
-    got = _bspline_grid(bspline, (u[:-1, None] + s[None, :] * block.du[:, None]).ravel(),
-                        (v[:-1, None] + s[None, :] * block.dv[:, None]).ravel()).reshape(expected.shape)
-    worst = float(np.linalg.norm(got - expected, axis=-1).max())
-    if worst > EXACTNESS * max(size, 1e-300):
-        return None, u, v
-    return bspline, u, v
+            set_pole(a, b, point)  # SetValue copies
+    (uk, um), (vk, vm) = (_occ_knots(k, m) for k, m in zip(spline.knots, spline.mults))
+    return Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, False, False), u, v, spline.knots
 
 
-def _flat_knots(knots, mults) -> np.ndarray:
-    return np.repeat(np.asarray(knots, dtype=np.float64), np.asarray(mults, dtype=np.int64))
-
-
-def _bspline_grid(bspline: Geom_BSplineSurface, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """(len(x), len(y), 3) points of a non-rational B-spline surface on the grid x by y, from
-    its poles and knots (scipy's B-spline basis: one matrix product, not a Value call per
-    point)."""
-    from scipy.interpolate import BSpline
-
-    nu, nv = bspline.NbUPoles(), bspline.NbVPoles()
-    pole = bspline.Pole
-    poles = np.array([[pole(i, j).Coord() for j in range(1, nv + 1)] for i in range(1, nu + 1)])
-    tu = _flat_knots([bspline.UKnot(i) for i in range(1, bspline.NbUKnots() + 1)],
-                     [bspline.UMultiplicity(i) for i in range(1, bspline.NbUKnots() + 1)])
-    tv = _flat_knots([bspline.VKnot(i) for i in range(1, bspline.NbVKnots() + 1)],
-                     [bspline.VMultiplicity(i) for i in range(1, bspline.NbVKnots() + 1)])
-    bu = BSpline.design_matrix(np.clip(x, tu[0], tu[-1]), tu, bspline.UDegree()).tocsr()
-    bv = BSpline.design_matrix(np.clip(y, tv[0], tv[-1]), tv, bspline.VDegree()).tocsr()
-    along_u = bu @ poles.reshape(nu, nv * 3)  # (x, nv * 3): sparse rows of d + 1 entries
-    both = bv @ along_u.reshape(len(x), nv, 3).transpose(1, 0, 2).reshape(nv, len(x) * 3)
-    return both.reshape(len(y), len(x), 3).transpose(1, 0, 2)
+def _occ_knots(knots: np.ndarray, mults: np.ndarray):
+    k = TColStd_Array1OfReal(1, len(knots))
+    m = TColStd_Array1OfInteger(1, len(knots))
+    for i, (x, n) in enumerate(zip(np.asarray(knots, dtype=np.float64).tolist(), np.asarray(mults).tolist()), 1):
+        k.SetValue(i, x)
+        m.SetValue(i, int(n))
+    return k, m
 
 
 @dataclass(frozen=True)
@@ -172,11 +135,11 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
     faces_plan = []  # ("patch", row) or ("block", block, bspline, u, v)
     in_block = np.zeros(len(nets), dtype=bool)
     for block in find_blocks(surface, spans):
-        bspline, u, v = _packed_surface(block, nets, float(surface.size))
+        bspline, u, v, knots = _packed_surface(block, nets, float(surface.size))
         if bspline is None:
             continue
         in_block[block.rows.ravel()] = True
-        faces_plan.append(("block", block, bspline, u, v))
+        faces_plan.append(("block", block, bspline, u, v, knots))
     faces_plan += [("patch", row) for row in range(len(nets)) if not in_block[row]]
 
     # Sides on a face boundary: every side of a lone patch, the outer sides of a block.
@@ -219,16 +182,18 @@ def to_packed_shape(surface: BezierSurface, spans: np.ndarray, *, check: bool = 
         first, last = curves[chain[0][0]], curves[chain[-1][0]]
         v0 = first[2] if chain[0][1] else first[1]
         v1 = last[1] if chain[-1][1] else last[2]
-        curve = bezier_curve(rows[0]) if len(rows) == 1 else _chain_curve(rows, chain_knots[c], KNOT_TOLERANCE * float(surface.size))
+        curve = bezier_curve(rows[0]) if len(rows) == 1 else _chain_curve(rows, chain_knots[c], KNOT_TOLERANCE * float(surface.size),
+                                                                                     EXACTNESS * float(surface.size))
         edges.append(make_edge(builder, curve, vertices[v0], vertices[v1], tol))
         for k, (e, back) in enumerate(chain):
             chain_of[e] = (c, k, back)
 
     faces = []
-    for surf, wire in zip(surfaces, wires):
+    for surf, wire, plan in zip(surfaces, wires, faces_plan):
         f = TopoDS_Face()
         builder.MakeFace(f, surf, tol)
-        bound_face_pieces(builder, f, _chained_wire(wire, chain_of, chains, chain_knots), edges, tol)
+        face_knots = plan[5] if plan[0] == "block" else None
+        bound_face_pieces(builder, f, _chained_wire(wire, chain_of, chains, chain_knots, face_knots), edges, tol)
         faces.append(f)
 
     # orientation as to_shape's test, without OCC's slow integration of multi-span faces
@@ -262,7 +227,7 @@ def _wire_table(faces_plan, pieces) -> tuple[np.ndarray, ...]:
         if plan[0] == "patch":
             cols.append(np.array([[f, plan[1], k, 0.0, 0.0, 1.0, 1.0, k] for k in range(4)]))
         else:
-            _, block, _, u, v = plan
+            _, block, _, u, v, _ = plan
             cells = list(block_boundary(block, with_cell=True))
             ij = np.array([c[3] for c in cells], dtype=np.int64).reshape(-1, 2)
             rtk = np.array([c[:3] for c in cells], dtype=np.int64).reshape(-1, 3)
@@ -304,56 +269,63 @@ def _turns(face, edge, rev, start, end, curves) -> set[int]:
     return {curves[e][1] if r else curves[e][2] for e, r in zip(edge[turn].tolist(), rev[turn].tolist())}
 
 
-def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float) -> Geom_BSplineCurve:
+def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float, exact: float) -> Geom_BSplineCurve:
     """The Bézier rows (each (d+1, 3), end to start) as one B-spline curve on [0, 1], row k on
-    [knots_at[k], knots_at[k+1]] (interior knots of multiplicity d: exactly the rows), then each
-    interior knot removed where the join is C2 (C1) to within ``tol``.  OpenCASCADE's removal
-    is checked: the curve is compared with the rows at 5 parameters of each, and where it is
-    off by more than ``tol`` the knots all stay (measured: a chain parametrised uniformly
-    across unequal knot intervals lost its knots with 1e-2 of error)."""
-    d, n = len(rows[0]) - 1, len(rows)
-    points = np.concatenate([rows[0]] + [r[1:] for r in rows[1:]])
-
-    def make() -> Geom_BSplineCurve:
-        poles = TColgp_Array1OfPnt(1, len(points))
-        for i, (x, y, z) in enumerate(points.tolist()):
-            poles.SetValue(i + 1, gp_Pnt(x, y, z))
-        knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
-        for i in range(n + 1):
-            knots.SetValue(i + 1, float(knots_at[i]))
-            mults.SetValue(i + 1, d + 1 if i in (0, n) else d)
-        return Geom_BSplineCurve(poles, knots, mults, d)
-
-    curve = make()
-    for i in range(n, 1, -1):
-        curve.RemoveKnot(i, 1, tol) or curve.RemoveKnot(i, 2, tol)
-    if curve.NbKnots() < n + 1:
-        t = np.linspace(0.0, 1.0, 5)
-        expected = evaluate_nets(np.stack([np.stack([r] * (d + 1), axis=1) for r in rows]), t, np.zeros(5))
-        lo, hi = knots_at[:-1, None], knots_at[1:, None]
-        got = np.array([curve.Value(float(w)).Coord() for w in (lo + t[None, :] * (hi - lo)).ravel().tolist()])
-        if np.linalg.norm(got - expected.reshape(-1, 3), axis=1).max() > tol:
-            curve = make()
-    return curve
+    [knots_at[k], knots_at[k+1]]: ``reduce_curve``'s fewest knots (removed where the joins are
+    one polynomial, lowered where C2 or C1, to within ``tol``), checked against the rows to
+    ``exact``, else the Bézier form (model units both)."""
+    spline = reduce_curve(np.stack(rows), knots_at, tol, exact)
+    poles = TColgp_Array1OfPnt(1, len(spline.poles))
+    for i, (x, y, z) in enumerate(spline.poles.tolist(), 1):
+        poles.SetValue(i, gp_Pnt(x, y, z))
+    knots, mults = _occ_knots(spline.knots[0], spline.mults[0])
+    return Geom_BSplineCurve(poles, knots, mults, spline.degree)
 
 
-def _polyline_2d(points: list[np.ndarray], knots_at: np.ndarray) -> Geom2d_BSplineCurve:
-    """Degree-1 pcurve through ``points``, segment k on [knots_at[k], knots_at[k+1]] (the
-    knots of ``_chain_curve``, which knot removal does not move)."""
-    n = len(points) - 1
-    poles = TColgp_Array1OfPnt2d(1, n + 1)
-    knots, mults = TColStd_Array1OfReal(1, n + 1), TColStd_Array1OfInteger(1, n + 1)
-    for i, (x, y) in enumerate(np.asarray(points, dtype=np.float64).tolist()):
-        poles.SetValue(i + 1, gp_Pnt2d(x, y))
-        knots.SetValue(i + 1, float(knots_at[i]))
-        mults.SetValue(i + 1, 2 if i in (0, n) else 1)
-    return Geom2d_BSplineCurve(poles, knots, mults, 1)
+def _polyline_2d(points: list[np.ndarray], knots_at: np.ndarray, face_knots=None):
+    """Degree-1 pcurve through ``points``, point k at ``knots_at[k]`` (the chain's parameter):
+    its breakpoints removed where the polyline runs straight on at the same speed
+    (``reduce_curve`` of degree 1, to 1e-14 of its extent in (u, v): round-off only), then put
+    back where a segment crosses one of the face's knot lines (``face_knots``: its u and v
+    knots, None for a Bézier face), so that each segment lies in one row of the face's spans.
+    The curve is the same function of the parameter; the knot lines are for OpenCASCADE's
+    mass properties, whose boundary integration takes the pcurve's segments as its intervals
+    (one segment across many spans measured the volume of a packed torus 1.8e-11 off, at any
+    tolerance, against 1e-16 with the knots).  A single segment is ``line_2d``."""
+    points = np.asarray(points, dtype=np.float64)
+    knots_at = np.asarray(knots_at, dtype=np.float64)
+    tol = 1e-14 * max(float(np.abs(points - points[0]).max()), 1e-300)
+    spline = reduce_curve(np.stack([points[:-1], points[1:]], axis=1), knots_at, tol, tol)
+    poles, at = spline.poles, spline.knots[0]
+    if face_knots is not None and len(poles) < len(points):
+        new_poles, new_at = [poles[:1]], [at[:1]]
+        for k in range(len(poles) - 1):
+            a, b = poles[k], poles[k + 1]
+            cut = [0.0, 1.0]
+            for axis, lines in enumerate(face_knots):
+                lo, hi = sorted((a[axis], b[axis]))
+                inner = lines[(lines > lo + tol) & (lines < hi - tol)]
+                cut += ((inner - a[axis]) / (b[axis] - a[axis])).tolist()
+            w = np.unique(np.clip(cut, 0.0, 1.0))[1:]
+            new_poles.append(a + w[:, None] * (b - a))
+            new_at.append(at[k] + w * (at[k + 1] - at[k]))
+        poles, at = np.concatenate(new_poles), np.concatenate(new_at)
+        poles[-1], at[-1] = points[-1], knots_at[-1]
+    if len(poles) == 2:
+        return line_2d(*poles)
+    n = len(poles)
+    pcurve = TColgp_Array1OfPnt2d(1, n)
+    for i, (x, y) in enumerate(poles.tolist(), 1):
+        pcurve.SetValue(i, gp_Pnt2d(x, y))
+    knots, mults = _occ_knots(at, np.r_[2, np.ones(n - 2, dtype=np.int64), 2])
+    return Geom2d_BSplineCurve(pcurve, knots, mults, 1)
 
 
-def _chained_wire(wire, chain_of: dict, chains, chain_knots) -> list:
+def _chained_wire(wire, chain_of: dict, chains, chain_knots, face_knots=None) -> list:
     """A face's wire of (edge, reversed, a, b) as (chain edge, reversed, pcurve): each run of
     one chain's edges (consecutive, perhaps around the wire's start) one entry, its pcurve the
-    polyline of the run's segments in the chain's direction."""
+    polyline of the run's segments in the chain's direction (``_polyline_2d``; face_knots:
+    the face's u and v knots, None for a Bézier face)."""
     keys = [chain_of[e][0] for e, _, _, _ in wire]
     start = next((i for i in range(len(wire)) if keys[i] != keys[i - 1]), 0)
     wire, keys = wire[start:] + wire[:start], keys[start:] + keys[:start]
@@ -376,21 +348,22 @@ def _chained_wire(wire, chain_of: dict, chains, chain_knots) -> list:
                 a, b = (b, a) if back else (a, b)
                 points = points or [a]
                 points.append(b)
-            out.append((c, not agree, _polyline_2d(points, chain_knots[c])))
+            out.append((c, not agree, _polyline_2d(points, chain_knots[c], face_knots)))
         i = j
     return out
 
 
 def _signed_volumes(surface: BezierSurface) -> np.ndarray:
     """Volume enclosed by each patch's cone to the origin, 1/3 of the integral of
-    S . (S_s x S_t), by Gauss-Legendre with 10 nodes (exact for degree <= 5), in row order:
-    summed over a closed component, its sign orients that solid."""
-    x, weights = np.polynomial.legendre.leggauss(10)
-    x, weights = (x + 1) / 2, weights / 2
-    s, t = (a.ravel() for a in np.meshgrid(x, x, indexing="ij"))
-    w = np.outer(weights, weights).ravel()
+    S . (S_s x S_t), in row order: summed over a closed component, its sign orients that
+    solid.  For a degree-d patch the integrand has degree 3 d - 1 in s and in t, which
+    Gauss-Legendre with ceil(3 d / 2) nodes integrates exactly (5 x 5 for bicubics)."""
     out = []
     for g in surface.groups:
+        x, weights = np.polynomial.legendre.leggauss(-(-3 * int(g.degree) // 2))
+        x, weights = (x + 1) / 2, weights / 2
+        s, t = (a.ravel() for a in np.meshgrid(x, x, indexing="ij"))
+        w = np.outer(weights, weights).ravel()
         p, ds, dt = evaluate_nets(g.coefficients, s, t, derivatives=True)
         out.append(np.einsum("m,kmc,kmc->k", w, p, cross3(ds, dt)) / 3)
     return np.concatenate(out) if out else np.zeros(0)

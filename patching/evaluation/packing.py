@@ -21,15 +21,21 @@ patch sides, each tiled by its own pieces.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from patching.surface import BezierSurface
 
-__all__ = ["Block", "MAX_SIDE", "block_neighbours", "find_blocks", "block_poles", "block_boundary", "edge_chains"]
+__all__ = ["Block", "MAX_SIDE", "MAX_PATCHES", "Spline", "block_neighbours", "find_blocks", "block_poles", "block_boundary", "edge_chains",
+           "knot_multiplicities", "bezier_matrix", "reduce_curve", "reduce_block"]
 
-#: Blocks have at most this many patches a side (keeps each face's pole grid moderate).
-MAX_SIDE = 128
+#: Blocks have at most this many patches a side, and at most MAX_PATCHES patches (the Bézier
+#: form of a block, (3 w + 1) (3 h + 1) poles, is what the knot removal starts from).  Along a
+#: semi-sharp crease a ring of level-6 leaves is 64 patches a control-mesh edge, and its knots
+#: there are removed: one face a ring, not one every two edges.
+MAX_SIDE = 4096
+MAX_PATCHES = 128 * 128
 
 
 @dataclass(frozen=True)
@@ -90,10 +96,10 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
     """Rectangular blocks of at least 2 bicubic patches, grown greedily from each free patch
     in row order.
 
-    From a seed patch the block grows along its s direction across side 1 while the next
-    patch is bicubic and free, then row by row across side 2 while every patch above is
-    bicubic, free and the rows stay a grid (the patch right of each one is the next one
-    above).  Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the
+    From a seed patch the block grows along its s direction, across side 1 and then across
+    side 3, while the next patch is bicubic and free, then row by row across side 2 and then
+    across side 0 while every patch of the new row is bicubic, free and the rows stay a grid
+    (the patch right of each one is the next one of the row).  Neighbours whose (s, t) frame is turned are turned to match (``np.rot90`` of the
     net, spans swapped).  No side on a block's boundary faces a patch of the same block (a
     full ring of a torus, or a helix of patches on a twisted one), so that no packed face
     meets itself along a seam; a block whose knot intervals do not form one grid is dropped.
@@ -111,9 +117,10 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             return None
         return int(r), int((s - (side + 2)) % 4)  # its side s plays the opposite block side
 
-    def faces_block(cells, sides, block: set) -> bool:
-        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block``."""
-        return any((x := across(r, t, k)) is not None and x[0] in block for r, t in cells for k in sides)
+    def faces_block(cells, sides, block: set, extra=()) -> bool:
+        """True when a patch across one of ``sides`` of one of ``cells`` is in ``block`` (or
+        is one of ``extra``)."""
+        return any((x := across(r, t, k)) is not None and (x[0] in block or x[0] in extra) for r, t in cells for k in sides)
 
     blocks = []
     for seed in range(p):
@@ -121,33 +128,41 @@ def find_blocks(surface: BezierSurface, spans: np.ndarray) -> list[Block]:
             continue
         row0 = [(seed, 0)]
         taken = {seed}
-        while len(row0) < MAX_SIDE:
-            nxt = across(*row0[-1], 1)
-            if nxt is None or not free[nxt[0]] or nxt[0] in taken:
-                break
-            # Its sides 0, 1, 2 stay on the block's boundary (or become inner sides towards
-            # patches not yet taken): none may face the row itself (a ring closes at side 1).
-            if faces_block([nxt], (0, 1, 2), taken | {nxt[0]}):
-                break
-            row0.append(nxt)
-            taken.add(nxt[0])
+        # Along s both ways: across side 1 from the row's end, then across side 3 from its start
+        # (patches come in no order along a ring: grown one way only, a ring of fine leaves
+        # broke into pieces one coarse face long).  The new patch's sides other than the one
+        # towards the row stay on the block's boundary (or become inner sides towards patches
+        # not yet taken): none may face the row itself (a ring closes there).
+        for side, outer in ((1, (0, 1, 2)), (3, (0, 2, 3))):
+            while len(row0) < MAX_SIDE:
+                nxt = across(*row0[-1 if side == 1 else 0], side)
+                if nxt is None or not free[nxt[0]] or nxt[0] in taken:
+                    break
+                if faces_block([nxt], outer, taken, (nxt[0],)):
+                    break
+                row0.insert(len(row0) if side == 1 else 0, nxt)
+                taken.add(nxt[0])
         grid = [row0]
-        while len(grid) < MAX_SIDE:
-            above = [across(r, t, 2) for r, t in grid[-1]]
-            if any(a is None or not free[a[0]] or a[0] in taken for a in above):
-                break
-            ids = [a[0] for a in above]
-            if len(set(ids)) != len(ids):
-                break
-            # A grid: right of each patch above is the next one above.
-            if any(across(*above[i], 1) != above[i + 1] for i in range(len(above) - 1)):
-                break
-            # The new row's outer sides: 2 of every patch, 3 of the first and 1 of the last.
-            block = taken | set(ids)
-            if faces_block(above, (2,), block) or faces_block(above[:1], (3,), block) or faces_block(above[-1:], (1,), block):
-                break
-            grid.append(above)
-            taken.update(ids)
+        # Rows across side 2 above the last one, then across side 0 below the first.
+        for side in (2, 0):
+            while len(grid) < MAX_SIDE and len(grid) * len(row0) < MAX_PATCHES:
+                edge_row = grid[-1] if side == 2 else grid[0]
+                nxt_row = [across(r, t, side) for r, t in edge_row]
+                if any(a is None or not free[a[0]] or a[0] in taken for a in nxt_row):
+                    break
+                ids = [a[0] for a in nxt_row]
+                if len(set(ids)) != len(ids):
+                    break
+                # A grid: right of each new patch is the next new one.
+                if any(across(*nxt_row[i], 1) != nxt_row[i + 1] for i in range(len(nxt_row) - 1)):
+                    break
+                # The new row's outer sides: ``side`` of every patch, 3 of the first and 1 of the last.
+                new = set(ids)
+                if (faces_block(nxt_row, (side,), taken, new) or faces_block(nxt_row[:1], (3,), taken, new)
+                        or faces_block(nxt_row[-1:], (1,), taken, new)):
+                    break
+                grid.insert(len(grid) if side == 2 else 0, nxt_row)
+                taken.update(ids)
         if len(taken) < 2:
             continue
         rows = np.array([[r for r, _ in line] for line in grid], dtype=np.int64).T  # (w, h)
@@ -263,3 +278,257 @@ def edge_chains(wires, ends: dict, degree: dict, corners=frozenset()) -> list[li
         half = max(1, len(loop) // 2)
         chains += [c for c in (loop[:half], loop[half:]) if c]
     return chains
+
+
+# --- Knot removal ----------------------------------------------------------------------------
+#
+# A run of n Bézier spans of degree p, span i on [x_i, x_{i+1}], is a spline with every interior
+# knot of multiplicity p.  Where two spans join C^k (k < p) the knot is needed only p - k
+# times; where they are one polynomial (C^p: the jump of the p-th derivative is zero too) it is
+# not needed at all.  Jumps are measured in pole units: the j-th derivative of a degree-p
+# Bézier span of length d at its end is p!/(p-j)! Delta^j b_{p-j} / d^j, so a jump J_j there
+# moves the poles of the shorter span (length r) by about |J_j| r^j (p-j)!/p!; a knot keeps the
+# multiplicity p - k for the largest k whose jumps 0..k all are within the tolerance.  The
+# B-spline on the kept knots is then the least-squares fit to the Bézier coefficients, through
+# the exact linear map from its poles to them (``bezier_matrix``: knot insertion up to
+# multiplicity p), and it is accepted only if that map gives back every span's coefficients
+# to the exactness bound: by the convex hull property of the Bernstein basis the spline then
+# differs from the spans by no more than that anywhere.  This is knot removal (Tiller's
+# algorithm, Piegl and Tiller, The NURBS Book, sec. 5.4) decided for all knots at once from the
+# spans themselves and made exact by the check, in place of one OpenCASCADE call per knot.
+
+
+@dataclass(frozen=True)
+class Spline:
+    """A clamped B-spline of degree p (curve or tensor-product surface): distinct knots and
+    their multiplicities per direction (ends p + 1), poles (N, c) or (Nu, Nv, c)."""
+
+    knots: tuple[np.ndarray, ...]
+    mults: tuple[np.ndarray, ...]
+    poles: np.ndarray
+    degree: int = 3
+
+
+def knot_multiplicities(along: np.ndarray, d: np.ndarray, tol: float) -> np.ndarray:
+    """(n - 1,) int64: the multiplicity each interior breakpoint of n Bézier spans needs (text
+    above): 0 where the spans on both sides are one polynomial, p - k where they join C^k.
+
+    along: (n, p + 1, m, c) the spans' coefficients along the direction (m rows across it, c
+    coordinates); d: (n,) their parameter lengths, all > 0; tol: in model units."""
+    n, p1 = along.shape[:2]
+    p = p1 - 1
+    if n < 2:
+        return np.zeros(0, dtype=np.int64)
+    d = np.asarray(d, dtype=np.float64)
+    da, db = d[:-1], d[1:]
+    r = np.minimum(da, db)
+    ok = np.ones(n - 1, dtype=bool)
+    cont = np.full(n - 1, -1, dtype=np.int64)
+    for j in range(p + 1):
+        end = np.diff(along[:-1], n=j, axis=1)[:, -1]  # Delta^j b_{p-j} of the left span
+        start = np.diff(along[1:], n=j, axis=1)[:, 0]  # Delta^j b_0 of the right one
+        jump = end * ((r / da) ** j)[:, None, None] - start * ((r / db) ** j)[:, None, None]
+        ok &= np.sqrt(np.einsum("kmc,kmc->km", jump, jump)).max(axis=1) <= tol
+        cont[ok] = j
+    return p - cont.clip(0, p)  # not even C0 (a bad join): p, and the check refuses it
+
+
+@lru_cache(maxsize=None)
+def _bezier_from_values(p: int) -> np.ndarray:
+    """(p + 1, p + 1): a degree-p polynomial's Bézier coefficients on [0, 1] from its values at
+    0, 1/p, ..., 1 (the inverse of the Bernstein collocation; its first and last rows exact)."""
+    from patching.bernstein import bernstein
+
+    out = np.linalg.inv(bernstein(p, np.linspace(0.0, 1.0, p + 1)))
+    out[[0, -1]] = 0.0
+    out[0, 0] = out[-1, -1] = 1.0
+    out.setflags(write=False)
+    return out
+
+
+def flat_knots(x: np.ndarray, mults: np.ndarray, p: int) -> np.ndarray:
+    """The knot vector on breakpoints x (n + 1,) with interior multiplicities mults (n - 1,)
+    and clamped ends (multiplicity p + 1)."""
+    m = np.concatenate([[p + 1], np.asarray(mults, dtype=np.int64), [p + 1]])
+    return np.repeat(np.asarray(x, dtype=np.float64), m)
+
+
+def bezier_matrix(x: np.ndarray, mults: np.ndarray, p: int):
+    """(p n + 1, N) scipy CSR: the Bézier coefficients of the n spans of the clamped degree-p
+    B-spline with breakpoints x (increasing) and interior multiplicities mults, from its N
+    poles; span i's are rows p i .. p i + p.  Span i's coefficients are ``_bezier_from_values``
+    of the spline's values at x_i + (x_{i+1} - x_i) k / p (scipy's B-spline basis)."""
+    from scipy.interpolate import BSpline
+    from scipy.sparse import csr_matrix, identity, kron
+
+    x = np.asarray(x, dtype=np.float64)
+    n = len(x) - 1
+    k = np.arange(p + 1) / p
+    nodes = np.clip((x[:-1, None] + (x[1:] - x[:-1])[:, None] * k[None, :]).ravel(), x[0], x[-1])
+    values = BSpline.design_matrix(nodes, flat_knots(x, mults, p), p).tocsr()  # (n (p + 1), N)
+    per_span = kron(identity(n, format="csr"), csr_matrix(_bezier_from_values(p)), format="csr") @ values
+    rows = np.append((np.arange(n)[:, None] * (p + 1) + np.arange(p)[None, :]).ravel(), n * (p + 1) - 1)
+    return per_span.tocsr()[rows]
+
+
+class _FitMap:
+    """The map from a B-spline's poles to its spans' Bézier coefficients (``bezier_matrix``),
+    dense when small, and its least squares: argmin_z |a z - y| column by column through the
+    normal equations (a has full column rank and rows that each touch p + 1 consecutive
+    columns: banded Cholesky), with one step of iterative refinement."""
+
+    def __init__(self, x: np.ndarray, mults: np.ndarray, p: int):
+        from scipy.linalg import cholesky_banded
+
+        a = bezier_matrix(x, mults, p)
+        g = (a.T @ a).tocoo()
+        n = a.shape[1]
+        bw = int(np.abs(g.row - g.col).max()) if g.nnz else 0
+        ab = np.zeros((bw + 1, n))
+        upper = g.col >= g.row
+        ab[bw - (g.col - g.row)[upper], g.col[upper]] = g.data[upper]  # ab[bw - k, j] = g[j - k, j]
+        self.factor = (cholesky_banded(ab), False)
+        self.a = a.toarray() if a.shape[0] * a.shape[1] <= 1 << 18 else a
+        self.at = self.a.T if isinstance(self.a, np.ndarray) else a.T.tocsr()
+
+    def solve(self, y: np.ndarray) -> np.ndarray:
+        from scipy.linalg import cho_solve_banded
+
+        z = cho_solve_banded(self.factor, self.at @ y)
+        return z + cho_solve_banded(self.factor, self.at @ (y - self.a @ z))
+
+
+@lru_cache(maxsize=256)
+def _cached_fit_map(x: bytes, mults: bytes, p: int) -> _FitMap:
+    return _FitMap(np.frombuffer(x), np.frombuffer(mults, dtype=np.int64), p)
+
+
+def _fit_map(x: np.ndarray, mults: np.ndarray, p: int) -> _FitMap:
+    """``_FitMap`` of breakpoints x, the same for x and any a x + b (a > 0), so that the many
+    small blocks of one pattern (two patches across a band, ...) share one: those of up to 64
+    spans are kept (256 of them, at most ~50 MB), longer ones made each time."""
+    x = np.asarray(x, dtype=np.float64)
+    mults = np.asarray(mults, dtype=np.int64)
+    if len(x) > 65:
+        return _FitMap(x, mults, p)
+    return _cached_fit_map(((x - x[0]) / (x[-1] - x[0])).tobytes(), mults.tobytes(), p)
+
+
+def kept_knots(along: np.ndarray, x: np.ndarray, tol: float, exact: float) -> np.ndarray | None:
+    """(n - 1,) multiplicities of the interior breakpoints x (n + 1,) of n Bézier spans along
+    (n, p + 1, m, c) such that the least-squares B-spline on them gives back every span to
+    ``exact``: ``knot_multiplicities`` (necessary, not sufficient: jumps below the tolerance
+    at each of 500 fine knots add up, on a ring of level-9 leaves near extraordinary points,
+    to 1e-9 of the size over the merged span), then, while a merged span is off, its middle
+    removed knot put back at multiplicity 1 (the joins there are C2), bisecting, and a span
+    that is off alone between kept knots raising them by one.  None if a span is still off
+    with its knots at multiplicity p (the Bézier form, which the caller takes then)."""
+    n, p1, m, c = along.shape
+    p = p1 - 1
+    x = np.asarray(x, dtype=np.float64)
+    mults = knot_multiplicities(along, np.diff(x), tol)
+    target = np.concatenate([along[:, :-1].reshape(n * p, m * c), along[-1:, -1].reshape(1, m * c)])
+    rows = np.arange(n)[:, None] * p + np.arange(p1)
+    for _ in range(64):
+        if not np.any(mults == 0):
+            return mults
+        fit = _fit_map(x, mults, p)
+        back = (fit.a @ fit.solve(target))[rows].reshape(n, p1, m, c)
+        bad = np.sqrt(((back - along) ** 2).sum(axis=-1)).max(axis=(1, 2)) > exact  # (n,)
+        if not bad.any():
+            return mults
+        kept = np.concatenate([[0], np.flatnonzero(mults > 0) + 1, [n]])  # segment ends (breakpoints)
+        segment = np.searchsorted(kept, np.flatnonzero(bad), side="right") - 1
+        changed = False
+        for s in np.unique(segment).tolist():
+            lo, hi = int(kept[s]), int(kept[s + 1])
+            if hi - lo >= 2:
+                mults[(lo + hi) // 2 - 1] = 1
+                changed = True
+                continue
+            # One span, no knot removed in it: off through the fit of its neighbours (least
+            # squares spreads), or its end knots were lowered too far (a C2 jump below the
+            # tolerance), which raising them mends.
+            ends = [k - 1 for k in (lo, hi) if 0 < k < n and mults[k - 1] < p]
+            mults[ends] += 1
+            changed |= bool(ends)
+        if not changed:
+            return None
+    return None
+
+
+def reduce_curve(rows: np.ndarray, x: np.ndarray, tol: float, exact: float) -> Spline:
+    """The fewest-knot B-spline equal to the Bézier rows (n, p + 1, c), row i on [x_i,
+    x_{i+1}]: knots removed where the joins allow (text above), the poles fitted and checked
+    to ``exact`` (model units); failing that the knots kept at multiplicity >= 1, failing that
+    the Bézier form itself (every interior knot p times: the rows, the joins as row i + 1 has
+    them)."""
+    rows = np.asarray(rows, dtype=np.float64)
+    n, p1, c = rows.shape
+    p = p1 - 1
+    x = np.asarray(x, dtype=np.float64)
+    target = np.concatenate([rows[:, :-1].reshape(-1, c), rows[-1:, -1]])
+    m = kept_knots(rows[:, :, None, :], x, tol, exact)
+    for mults in [] if m is None else [m, np.maximum(m, 1)]:
+        fit = _fit_map(x, mults, p)
+        poles = fit.solve(target)
+        spans = (fit.a @ poles)[np.arange(n)[:, None] * p + np.arange(p1)]
+        if np.sqrt(((spans - rows) ** 2).sum(axis=-1)).max() <= exact:
+            return _spline((x,), (mults,), poles, p)
+        if np.all(m >= 1):
+            break
+    return _spline((x,), (np.full(n - 1, p),), target, p)
+
+
+def _spline(xs, ms, poles, p) -> Spline:
+    full = tuple(np.concatenate([[p + 1], np.asarray(m, dtype=np.int64), [p + 1]]) for m in ms)
+    keep = tuple(f > 0 for f in full)
+    return Spline(tuple(np.asarray(x)[k] for x, k in zip(xs, keep)), tuple(f[k] for f, k in zip(full, keep)), poles, p)
+
+
+def reduce_block(block: Block, nets, tol: float, exact: float) -> Spline | None:
+    """The packed B-spline of a block with the fewest knots (text above), poles (Nu, Nv, 3), or
+    None if not even its Bézier form gives back every patch to ``exact`` (model units).
+    A knot along u is removed (or lowered) only as far as every row of poles across the block
+    allows, likewise along v; the fit is the tensor product of the two least-squares maps."""
+    turned, grid = block_poles(block, nets)
+    w, h = block.rows.shape
+    if np.any(block.du <= 0) or np.any(block.dv <= 0):
+        return None
+    u, v = block.knots
+    along_u = turned.transpose(0, 2, 1, 3, 4).reshape(w, 4, 4 * h, 3)
+    along_v = turned.transpose(1, 3, 0, 2, 4).reshape(h, 4, 4 * w, 3)
+    # each direction to a quarter of the bound, so that the tensor product of the two fits
+    # passes the check on the whole block as a rule
+    mu, mv = kept_knots(along_u, u, tol, exact / 4), kept_knots(along_v, v, tol, exact / 4)
+    mu = np.full(w - 1, 1, dtype=np.int64) if mu is None else mu  # then the C2 form, or the Bézier form
+    mv = np.full(h - 1, 1, dtype=np.int64) if mv is None else mv
+    ru, rv = np.arange(w)[:, None] * 3 + np.arange(4), np.arange(h)[:, None] * 3 + np.arange(4)
+
+    def fits(mu_, mv_):
+        fu, fv = _fit_map(u, mu_, 3), _fit_map(v, mv_, 3)
+        au, av = fu.a, fv.a
+        nu, nv = au.shape[1], av.shape[1]
+        ru_, rv_ = grid.shape[:2]
+        # along u: (nu, rv * 3), then along v
+        cu = fu.solve(grid.reshape(ru_, rv_ * 3)).reshape(nu, rv_, 3)
+        poles = fv.solve(cu.transpose(1, 0, 2).reshape(rv_, nu * 3)).reshape(nv, nu, 3).transpose(1, 0, 2)
+        back = (av @ (au @ poles.reshape(nu, nv * 3)).reshape(ru_, nv, 3).transpose(1, 0, 2).reshape(nv, ru_ * 3))
+        back = back.reshape(rv_, ru_, 3).transpose(1, 0, 2)
+        spans = back[ru[:, None, :, None], rv[None, :, None, :]]  # (w, h, 4, 4, 3)
+        err = np.sqrt(((spans - turned) ** 2).sum(axis=-1)).max()
+        return poles if err <= exact else None
+
+    tried = set()
+    for mu_, mv_ in ((mu, mv), (np.maximum(mu, 1), np.maximum(mv, 1))):
+        key = (mu_.tobytes(), mv_.tobytes())
+        if key in tried:
+            continue
+        tried.add(key)
+        poles = fits(mu_, mv_)
+        if poles is not None:
+            return _spline((u, v), (mu_, mv_), poles, 3)
+    err = np.sqrt(((grid[ru[:, None, :, None], rv[None, :, None, :]] - turned) ** 2).sum(axis=-1)).max()
+    if err <= exact:
+        return _spline((u, v), (np.full(w - 1, 3), np.full(h - 1, 3)), grid, 3)
+    return None
