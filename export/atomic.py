@@ -140,15 +140,20 @@ def check_output_path(path: str | os.PathLike) -> Path:
     remove_stale_temporaries(path)
     # Probe by creating a file: permission bits do not tell for root or read-only mounts.
     probe = parent / temporary_name(path.name, "probe")
+    # The name is this process's alone (pid and random bits), so removing it in ``finally`` is
+    # safe even when the open failed; a signal that unwinds between the open and the removal
+    # (SIGTERM and SIGHUP raise in the main thread: export.signals) leaves no probe behind.
     try:
         fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        os.close(fd)
     except OSError as exc:
         full = _full_disk(exc, str(path))
         if full is not None and exc.errno in _FULL:
             raise full from None
         raise OutputError(f"output directory is not writable ({exc.strerror})", str(parent)) from None
-    os.close(fd)
-    os.unlink(probe)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(probe)
     return path
 
 
