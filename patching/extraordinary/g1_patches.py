@@ -751,8 +751,9 @@ def _monotone_changes(
     e_count, ny, size = k.shape[0], _stage2_unknowns(n, pinned, -1).size, 1 + 3 * n
     digest = hashlib.sha256()
     for a in (configs, inverse, k, x, lo, hi, watch):
-        a = np.ascontiguousarray(a)
-        digest.update(repr((a.dtype.str, a.shape)).encode() + a.tobytes())
+        a = np.ascontiguousarray(a)  # the same bytes as ``a.tobytes()``, without its copy
+        digest.update(repr((a.dtype.str, a.shape)).encode())
+        digest.update(a.reshape(-1).view(np.uint8))
     args = (n, pinned, skip, float(q_weight), RIDGE, MAX_CHANGE, digest.hexdigest())
     if _monotone_memo.known(args):
         return _monotone_memo(*args)
