@@ -5,7 +5,9 @@ same rotation, also without and with the cache.  The mesh is ``benchmarks/build.
 split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
 drawn from {1, 2, 5} per strip.  ``--plain`` adds this tree without the monotone spoke step
 (``g1_patches.MONOTONE_SPOKES = False``, the red solve before issue 19).  Each child prints the wall and CPU seconds of the build alone
-(the mesh read and the imports excluded).  Run by hand:
+(the mesh read and the imports excluded), split into user and system
+time (``getrusage``: on a VM most of the system time is first touches of fresh pages), and the
+process's peak resident memory (which includes the imports and the mesh).  Run by hand:
 ``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR] [--plain]``.
 """
 
@@ -38,11 +40,15 @@ if sys.argv[2] == "cache":
 else:
     import contextlib
     context = contextlib.nullcontext()
+import resource
 with context:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
     wall, cpu = time.perf_counter(), time.process_time()
     op = patching.build_operator(mesh)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz)}))
+    after = resource.getrusage(resource.RUSAGE_SELF)
+print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz), "user": after.ru_utime - usage.ru_utime,
+                  "sys": after.ru_stime - usage.ru_stime, "rss": after.ru_maxrss / 1024}))
 """
 
 
@@ -84,7 +90,12 @@ def main() -> None:
     for name, rows in times.items():
         wall = np.array([r["wall"] for r in rows])
         cpu = np.array([r["cpu"] for r in rows])
-        print(f"  {name:12s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})  nnz {rows[0]['nnz']}")
+        user = np.array([r["user"] for r in rows])
+        system = np.array([r["sys"] for r in rows])
+        rss = np.array([r["rss"] for r in rows])
+        print(f"  {name:12s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})"
+              f"  = user {np.median(user):5.2f} ({user.min():5.2f}) + sys {np.median(system):5.2f} ({system.min():5.2f})"
+              f"  peak rss {np.median(rss):4.0f} MB  nnz {rows[0]['nnz']}")
 
 
 if __name__ == "__main__":

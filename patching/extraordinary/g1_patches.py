@@ -751,8 +751,9 @@ def _monotone_changes(
     e_count, ny, size = k.shape[0], _stage2_unknowns(n, pinned, -1).size, 1 + 3 * n
     digest = hashlib.sha256()
     for a in (configs, inverse, k, x, lo, hi, watch):
-        a = np.ascontiguousarray(a)
-        digest.update(repr((a.dtype.str, a.shape)).encode() + a.tobytes())
+        a = np.ascontiguousarray(a)  # the same bytes as ``a.tobytes()``, without its copy
+        digest.update(repr((a.dtype.str, a.shape)).encode())
+        digest.update(a.reshape(-1).view(np.uint8))
     args = (n, pinned, skip, float(q_weight), RIDGE, MAX_CHANGE, digest.hexdigest())
     if _monotone_memo.known(args):
         return _monotone_memo(*args)
@@ -998,6 +999,26 @@ def _ring_blocks(ref: sp.csr_matrix, e_count: int, per: int) -> tuple[np.ndarray
     return x, columns
 
 
+def _monotone_runs(values: tuple[np.ndarray, ...], tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """(down, up) of a control polygon given as equal-shape arrays of its consecutive values:
+    down where every step values[j] - values[j + 1] is >= -tol and one is > tol (monotone
+    decreasing, not flat), up the same way round.  The steps are taken one at a time (no
+    stacked (steps, ...) array: on the half-EP mesh that stack and its four comparisons were
+    ~40 MB of fresh memory per valence, and first touches dominate a cold build's system time)."""
+    down = up = any_down = any_up = None
+    for a, b in zip(values[:-1], values[1:]):
+        step = a - b
+        d, u, sd, su = step >= -tol, step <= tol, step > tol, step < -tol
+        if down is None:
+            down, up, any_down, any_up = d, u, sd, su
+        else:
+            down &= d
+            up &= u
+            any_down |= sd
+            any_up |= su
+    return down & any_down, up & any_up
+
+
 class G1Assembly:
     """Row bookkeeping of the quintic irregular patches and the four G1 steps, vectorised over
     the EPs of one valence; local solves are computed once per distinct configuration."""
@@ -1102,14 +1123,14 @@ class G1Assembly:
         e_count, per = rows.shape
         x, reached = _ring_blocks(sp.csr_matrix(self.reference(rows.ravel())), e_count, per)
         of_ep = self.is_ep[reached] & (reached >= 0)  # the column is an EP's function
-        v = np.einsum("eij,ejc->eic", ops, x[:, :size])
+        # the solve's P00, s and q of every function (its face points f are not read here)
+        read = np.r_[0 : 1 + n, 1 + 2 * n : size]
+        v = np.einsum("eij,ejc->eic", ops[:, read], x[:, :size])
         s_hat, q_hat = x[:, 1 : 1 + n], x[:, 1 + 2 * n : size]
         p30_hat, p40, p50 = x[:, size : size + n], x[:, size + n : size + 2 * n], x[:, size + 2 * n :]
-        p00, s_new, q_new = v[:, :1], v[:, 1 : 1 + n], v[:, 1 + 2 * n :]
+        p00, s_new, q_new = v[:, :1], v[:, 1 : 1 + n], v[:, 1 + n :]
         tol = 1e-10
-        steps = np.stack([s_hat - q_hat, q_hat - p30_hat, p30_hat - p40, p40 - p50])
-        down = (steps >= -tol).all(axis=0) & (steps > tol).any(axis=0)
-        up = (steps <= tol).all(axis=0) & (steps < -tol).any(axis=0)
+        down, up = _monotone_runs((s_hat, q_hat, p30_hat, p40, p50), tol)
         flat = 0.5 * (p40 + s_new) - 0.1 * (p00 - p50)  # q that puts P30 on P40
         lo = np.where(down, flat, np.where(up, s_new, np.nan))
         hi = np.where(down, s_new, np.where(up, flat, np.nan))
