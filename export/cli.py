@@ -159,7 +159,7 @@ def cmd_build(args: argparse.Namespace) -> int:
         return _build_grid_with_vectors(args, jobs)
     if len(jobs) == 1 and not args.dask:  # in this process: errors reach main()'s handler (and --debug)
         if getattr(args, "own_process", False):
-            _import_frozen("export.inputs", "export.brep", "export.step", "export.formats", "export.budget")
+            _import_frozen(*_BUILD_PATH)
         start = time.perf_counter()
         with _Bar(args, len(STAGES), "stages", f"{Path(jobs[0].mesh).name}: {STAGES[0]}") as bar:
             started = []
@@ -204,8 +204,15 @@ def _build_grid_with_vectors(args: argparse.Namespace, jobs: list) -> int:
 
 
 def _build_many(args: argparse.Namespace, jobs: list) -> int:
-    """Build every job in up to ``-j`` processes; each result on its own line, exit 2 if any failed."""
+    """Build every job in up to ``-j`` processes; each result on its own line, exit 2 if any failed.
+
+    As its own process with a pool, the build path (OCP) is imported frozen before the workers
+    are forked (``_import_frozen``): they inherit its objects in the collector's permanent
+    generation, so no worker's collection walks them (nor copies their pages on write)."""
     from export.pipeline import build_files
+
+    if getattr(args, "own_process", False) and not args.dask and args.jobs > 1 and len(jobs) > 1:
+        _import_frozen(*_BUILD_PATH)
 
     with _Bar(args, len(jobs), "meshes") as bar:
         bar.describe(f"building on the Dask cluster {args.dask}" if args.dask else f"building in {min(args.jobs, len(jobs))} processes")
@@ -560,6 +567,10 @@ def _parser(only: str | None = None) -> argparse.ArgumentParser:
         cli_models.add_parser(sub)
 
     return parser
+
+
+#: The modules a build imports (OpenCASCADE's OCP among them): what ``_import_frozen`` loads.
+_BUILD_PATH = ("export.inputs", "export.brep", "export.step", "export.formats", "export.budget")
 
 
 def _import_frozen(*modules: str) -> None:
