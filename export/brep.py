@@ -35,7 +35,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from .ocp_compat import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
+from .ocp_compat import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt, TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.BRep import BRep_Builder
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
@@ -62,7 +62,7 @@ from patching.mesh import NupatchWarning
 from patching.surface import CORNER_PARAMETERS, BezierSurface
 
 __all__ = [
-    "BrepError", "bezier_curve", "bezier_surface", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "make_vertices", "make_edges", "make_edge", "edge_curves", "side_point", "piece_lists", "patch_wire", "checked_patches",
+    "BrepError", "bezier_curve", "bezier_surface", "knot_arrays", "line_2d", "pcurve", "side_row", "to_shape", "shape_tolerance", "assemble", "bound_face", "bound_face_pieces", "make_vertices", "make_edges", "make_edge", "edge_curves", "side_point", "piece_lists", "patch_wire", "checked_patches",
     "no_volume_components", "warn_no_volume", "refuse_round_off", "shape_face_rows",
 ]
 
@@ -101,6 +101,16 @@ def bezier_curve(row: np.ndarray) -> Geom_BezierCurve:
     for i, (x, y, z) in enumerate(np.asarray(row, dtype=np.float64).tolist(), 1):
         poles.SetValue(i, gp_Pnt(x, y, z))
     return Geom_BezierCurve(poles)
+
+
+def knot_arrays(knots, mults) -> tuple[TColStd_Array1OfReal, TColStd_Array1OfInteger]:
+    """OpenCASCADE's arrays of a B-spline's distinct knots and their multiplicities."""
+    k = TColStd_Array1OfReal(1, len(knots))
+    m = TColStd_Array1OfInteger(1, len(knots))
+    for i, (x, n) in enumerate(zip(np.asarray(knots, dtype=np.float64).tolist(), np.asarray(mults).tolist()), 1):
+        k.SetValue(i, x)
+        m.SetValue(i, int(n))
+    return k, m
 
 
 def pcurve(side: int, reversed_: bool) -> Geom2d_Line:

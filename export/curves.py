@@ -57,21 +57,16 @@ def to_geom_curve(spline: BSplineCurve | Curve):
     """An OpenCASCADE ``Geom_BSplineCurve`` with the limit's poles, knots and degree."""
     from OCP.Geom import Geom_BSplineCurve
     from OCP.gp import gp_Pnt
+    from export.brep import knot_arrays
     from export.ocp_compat import TColgp_Array1OfPnt
-    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
     if not isinstance(spline, BSplineCurve):  # a Curve or a ModifiedQuinticCurve
         spline = spline.limit()
     poles = _xyz(spline.poles)
-    values, mults = np.unique(spline.knots, return_counts=True)
     P = TColgp_Array1OfPnt(1, len(poles))
     for i, p in enumerate(poles, start=1):
         P.SetValue(i, gp_Pnt(*map(float, p)))
-    K = TColStd_Array1OfReal(1, len(values))
-    M = TColStd_Array1OfInteger(1, len(values))
-    for i, (v, m) in enumerate(zip(values, mults), start=1):
-        K.SetValue(i, float(v))
-        M.SetValue(i, int(m))
+    K, M = knot_arrays(*np.unique(spline.knots, return_counts=True))
     return Geom_BSplineCurve(P, K, M, int(spline.degree))
 
 
@@ -222,15 +217,6 @@ def subdivide_with_vectors(mesh, mesh_path: str | os.PathLike, steps: int, rules
     return format_obj(refined, comment) + format_vector_tags(kept, kept_values) + rules_tag(rules) + "\n"
 
 
-def _array1(values, kind):
-    from export.ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
-
-    arr = (TColStd_Array1OfReal if kind is float else TColStd_Array1OfInteger)(1, len(values))
-    for i, x in enumerate(values, start=1):
-        arr.SetValue(i, kind(x))
-    return arr
-
-
 def to_geom_surface(surface, periodic: tuple[bool, bool] = (False, False)):
     """An OpenCASCADE ``Geom_BSplineSurface`` with the poles, knots and degrees of a
     ``patching.curves.surface_vectors.BSplineSurface`` (non-rational, clamped).
@@ -242,6 +228,7 @@ def to_geom_surface(surface, periodic: tuple[bool, bool] = (False, False)):
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
 
+    from export.brep import knot_arrays
     from export.ocp_compat import TColgp_Array2OfPnt
 
     poles = np.asarray(surface.poles, dtype=np.float64)
@@ -252,11 +239,10 @@ def to_geom_surface(surface, periodic: tuple[bool, bool] = (False, False)):
     for a in range(nu):
         for b in range(nv):
             P.SetValue(a + 1, b + 1, gp_Pnt(*map(float, poles[a, b])))
-    ku, mu = np.unique(surface.knots_u, return_counts=True)
-    kv, mv = np.unique(surface.knots_v, return_counts=True)
+    ku, mu = knot_arrays(*np.unique(surface.knots_u, return_counts=True))
+    kv, mv = knot_arrays(*np.unique(surface.knots_v, return_counts=True))
     du, dv = surface.degrees
-    g = Geom_BSplineSurface(P, _array1(ku, float), _array1(kv, float), _array1(mu, int), _array1(mv, int),
-                            int(du), int(dv), False, False)
+    g = Geom_BSplineSurface(P, ku, kv, mu, mv, int(du), int(dv), False, False)
     tol = 1e-10 * max(1.0, float(np.abs(poles).max()))
     if periodic[0]:
         g.SetUPeriodic()

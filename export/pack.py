@@ -35,7 +35,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from .ocp_compat import TColgp_Array1OfPnt, TColgp_Array1OfPnt2d, TColgp_Array2OfPnt
-from .ocp_compat import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.BRep import BRep_Builder
 from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface
 from OCP.Geom2d import Geom2d_BSplineCurve
@@ -52,6 +51,7 @@ from patching.evaluation.packing import MAX_SIDE, Block, block_boundary, edge_ch
 from export.brep import (
     BrepError,
     bezier_surface,
+    knot_arrays,
     line_2d,
     assemble,
     bound_face_pieces,
@@ -92,17 +92,8 @@ def _packed_surface(block: Block, nets: list[np.ndarray], size: float):
         for b, (x, y, z) in enumerate(line, 1):
             set_point(x, y, z)
             set_pole(a, b, point)  # SetValue copies
-    (uk, um), (vk, vm) = (_occ_knots(k, m) for k, m in zip(spline.knots, spline.mults))
+    (uk, um), (vk, vm) = (knot_arrays(k, m) for k, m in zip(spline.knots, spline.mults))
     return Geom_BSplineSurface(poles, uk, vk, um, vm, 3, 3, False, False), u, v, spline.knots
-
-
-def _occ_knots(knots: np.ndarray, mults: np.ndarray):
-    k = TColStd_Array1OfReal(1, len(knots))
-    m = TColStd_Array1OfInteger(1, len(knots))
-    for i, (x, n) in enumerate(zip(np.asarray(knots, dtype=np.float64).tolist(), np.asarray(mults).tolist()), 1):
-        k.SetValue(i, x)
-        m.SetValue(i, int(n))
-    return k, m
 
 
 @dataclass(frozen=True)
@@ -278,7 +269,7 @@ def _chain_curve(rows: list[np.ndarray], knots_at: np.ndarray, tol: float, exact
     poles = TColgp_Array1OfPnt(1, len(spline.poles))
     for i, (x, y, z) in enumerate(spline.poles.tolist(), 1):
         poles.SetValue(i, gp_Pnt(x, y, z))
-    knots, mults = _occ_knots(spline.knots[0], spline.mults[0])
+    knots, mults = knot_arrays(spline.knots[0], spline.mults[0])
     return Geom_BSplineCurve(poles, knots, mults, spline.degree)
 
 
@@ -317,7 +308,7 @@ def _polyline_2d(points: list[np.ndarray], knots_at: np.ndarray, face_knots=None
     pcurve = TColgp_Array1OfPnt2d(1, n)
     for i, (x, y) in enumerate(poles.tolist(), 1):
         pcurve.SetValue(i, gp_Pnt2d(x, y))
-    knots, mults = _occ_knots(at, np.r_[2, np.ones(n - 2, dtype=np.int64), 2])
+    knots, mults = knot_arrays(at, np.r_[2, np.ones(n - 2, dtype=np.int64), 2])
     return Geom2d_BSplineCurve(pcurve, knots, mults, 1)
 
 
