@@ -18,8 +18,7 @@ from hypothesis import strategies as st
 from scipy.optimize import approx_fprime, least_squares, minimize, root
 
 from patching.extraordinary import angle_configuration as ac_module
-from patching.extraordinary.angle_configuration import angle_configuration, angle_configurations
-from patching.util.memo import set_batching
+from patching.extraordinary.angle_configuration import angle_configuration
 from patching.options import ANGLES as MODES
 from patching.errors import KnotError, NupatchError, TagError
 
