@@ -729,32 +729,3 @@ def test_printed_eq8_first_row_needs_minus_b(n):
         scale = np.abs(d[i] * dm * v[(i + 1) % n]).max()
         assert np.abs(row(-c.b[i])).max() < 1e-13 * scale
         assert np.abs(row(c.b[i])).max() > 1e-3 * scale
-
-
-@settings(max_examples=40, deadline=None)
-@given(
-    n=st.integers(3, 8),
-    rows=st.integers(1, 12),
-    data=st.data(),
-)
-def test_vectorised_problem_keys_are_the_row_by_row_keys(n: int, rows: int, data) -> None:
-    """``angle_configurations`` checks and keys all rows at once (``_problems``): the same keys
-    (values and float types, bit for bit) as ``_problem`` row by row, and where a row is bad,
-    the same error as the row-by-row loop (the first bad row's)."""
-    values = st.sampled_from([0.0, 1.0, 2.0, 5.0, 0.1, 1 / 3, 1e-13, 7.123456789012345, -1.0, math.nan, math.inf])
-    table = [data.draw(st.lists(values, min_size=n, max_size=n)) for _ in range(rows)]
-    sharp = tuple(data.draw(st.sets(st.integers(0, n - 1), max_size=2)))
-
-    def outcome(f):
-        try:
-            return "ok", f()
-        except NupatchError as exc:
-            return type(exc).__name__, str(exc)
-
-    together = outcome(lambda: ac_module._problems(table, "optimized", 2.0, 200, sharp))
-    one_by_one = outcome(lambda: [ac_module._problem(r, "optimized", 2.0, 200, sharp) for r in table])
-    assert together == one_by_one
-    if together[0] == "ok":
-        for a, b in zip(together[1], one_by_one[1]):
-            assert [x.hex() for x in a[0]] == [x.hex() for x in b[0]]
-            assert all(type(x) is float for x in a[0])
