@@ -165,6 +165,18 @@ class _Context:
         )
 
     @cached_property
+    def regular_crease_vertex(self) -> np.ndarray:
+        """(v,) bool: interior, valence 4, four quads, a CREASE vertex of the parent level
+        (whether its two sharp edges are opposite is read per half-edge in ``ahead``)."""
+        return (
+            ~self.v_boundary
+            & (self.valence == 4)
+            & ~self.v_nonquad
+            & (self.parent.rule == CREASE)
+            & (self.n_faces_at == 4)
+        )
+
+    @cached_property
     def regular_boundary_vertex(self) -> np.ndarray:
         """(v,) bool: the boundary line continues straight through v (two quads, valence 3,
         no tag but the boundary crease itself)."""
@@ -180,17 +192,28 @@ class _Context:
     def ahead(self) -> np.ndarray:
         """(H,) interval beyond dest(h) on h's straight line; h's own where there is no line.
 
-        Lines run straight through regular interior vertices, and along the boundary through
-        regular boundary vertices: there the boundary curve's next interval, as the boundary
-        crease rule (``crease_beyond``) reads it, so that the edge points of the spokes into the
-        boundary see the same knots as the boundary curve (a clamped side, docs/knots.md, then
-        keeps its zero strips degenerate: every point of a zero strip lies on the boundary)."""
+        Lines run straight through regular interior vertices; along an interior crease through
+        a regular crease vertex (interior, valence 4, four quads, its two sharp edges
+        opposite); and along the boundary through regular boundary vertices: there the crease
+        or boundary curve's next interval, as the crease rule (``crease_beyond``) reads it, so
+        that the edge and face points beside the curve see the same knots as the curve (beside
+        a crease vertex whose spokes are all equal, which takes knot insertion and no
+        eigen-polyhedron rule, the crossing edges' points read the crease's own interval
+        there before: tests/test_crease_tensor.py).  A crease, like a boundary, ends the lines
+        that cross it.  At a clamped side (docs/knots.md) the boundary's reading keeps the
+        zero strips degenerate: every point of a zero strip lies on the boundary."""
         out = self.d_h.copy()
         b = self.dest
-        ok = self.regular_line_vertex[b]
-        hs = np.flatnonzero(ok)
+        hs = np.flatnonzero(self.regular_line_vertex[b])
         c = self.nxt[self.twin[self.nxt[hs]]]
         out[hs] = self.d_h[c]
+        # along an interior crease: h and its straight continuation c are the vertex's two
+        # sharp edges (a CREASE vertex has exactly two, so they are opposite spokes)
+        lev = self.parent
+        hc = np.flatnonzero(self.regular_crease_vertex[b] & lev.sharp[self.eoh])
+        c = self.nxt[self.twin[self.nxt[hc]]]
+        straight = lev.sharp[self.eoh[c]]
+        out[hc[straight]] = self.d_h[c[straight]]
         # along the boundary: h's edge is a boundary edge, next(h) the spoke into the interior
         hb = np.flatnonzero(self.regular_boundary_vertex[b] & (self.twin < 0) & (self.twin[self.nxt] >= 0))
         out[hb] = self.d_h[self.nxt[self.twin[self.nxt[hb]]]]
