@@ -48,7 +48,8 @@ with context:
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     after = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz), "user": after.ru_utime - usage.ru_utime,
-                  "sys": after.ru_stime - usage.ru_stime, "rss": after.ru_maxrss / 1024}))
+                  "sys": after.ru_stime - usage.ru_stime, "rss": after.ru_maxrss / 1024,
+                  "faults": after.ru_minflt - usage.ru_minflt}))
 """
 
 
@@ -93,9 +94,10 @@ def main() -> None:
         user = np.array([r["user"] for r in rows])
         system = np.array([r["sys"] for r in rows])
         rss = np.array([r["rss"] for r in rows])
+        touched = np.array([r["faults"] for r in rows]) * 4096 / 2**20
         print(f"  {name:12s} wall {np.median(wall):6.2f} s ({wall.min():5.2f})  cpu {np.median(cpu):6.2f} s ({cpu.min():5.2f})"
               f"  = user {np.median(user):5.2f} ({user.min():5.2f}) + sys {np.median(system):5.2f} ({system.min():5.2f})"
-              f"  peak rss {np.median(rss):4.0f} MB  nnz {rows[0]['nnz']}")
+              f"  peak rss {np.median(rss):4.0f} MB  faulted {np.median(touched):5.0f} MB  nnz {rows[0]['nnz']}")
 
 
 if __name__ == "__main__":
