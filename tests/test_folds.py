@@ -18,6 +18,49 @@ CUBE = patching.from_arrays(CUBE_VERTICES, CUBE_FACES, name="cube")
 TURNING = 0.5
 
 
+def turning_pointwise(nets: np.ndarray, samples: int, singular: float = 1e-6) -> np.ndarray:
+    """The detector written plainly: every sample's normal from ``evaluate_nets`` on the
+    flattened grid (s first) and np.cross, the corners' singular normals left out."""
+    from patching.bernstein import evaluate_nets
+
+    u = np.linspace(0.0, 1.0, samples)
+    s, t = (a.ravel() for a in np.meshgrid(u, u, indexing="ij"))
+    _, ds, dt = evaluate_nets(nets, s, t, derivatives=True)
+    n = np.cross(ds, dt).reshape(-1, samples, samples, 3)
+    size = np.linalg.norm(n, axis=-1)
+    n = n / np.maximum(size, 1e-300)[..., None]
+    ok = size > singular * size.max(axis=(1, 2), keepdims=True)
+    ok[:, 1:-1, :] = ok[:, :, 1:-1] = True
+    worst = np.ones(nets.shape[0])
+    for a in range(samples):
+        for b in range(samples):
+            for da, db in ((1, 0), (0, 1)):
+                if a + da < samples and b + db < samples:
+                    c = np.sum(n[:, a, b] * n[:, a + da, b + db], axis=-1)
+                    worst = np.where(ok[:, a, b] & ok[:, a + da, b + db], np.minimum(worst, c), worst)
+    return worst
+
+
+@pytest.mark.parametrize("degree", [3, 5])
+def test_detector_is_the_pointwise_one_in_chunks(degree, monkeypatch):
+    """The chunked tensor-grid detector gives the pointwise one's cosines (chunks of 7 patches
+    over 40: the last chunk short), on random nets, folded ones among them, and a net with a
+    collapsed corner."""
+    from patching.evaluation import sampling
+
+    monkeypatch.setattr(sampling, "TURNING_CHUNK", 7)
+    rng = np.random.default_rng(degree)
+    u = np.linspace(0.0, 1.0, degree + 1)
+    flat = np.stack(list(np.meshgrid(u, u, indexing="ij")) + [np.zeros((degree + 1,) * 2)], axis=-1)
+    nets = flat + np.linspace(0.01, 0.4, 40)[:, None, None, None] * rng.normal(size=(40,) + flat.shape)
+    nets[3, 0, :] = nets[3, 0, 0]  # side s = 0 collapsed to a point: two singular corners
+    group = patching.PatchGroup(degree=degree, faces=np.arange(40), coefficients=nets)
+    faces, worst = normal_turning(patching.BezierSurface((group,), None, "random", 1.0), samples=9)
+    np.testing.assert_array_equal(faces, np.arange(40))
+    np.testing.assert_allclose(worst, turning_pointwise(nets, 9), rtol=0, atol=1e-12)
+    assert (worst < 0).any() and (worst > 0.9).any()  # folds and smooth patches both present
+
+
 def test_detector_sees_a_fold_and_not_a_smooth_patch():
     u = np.linspace(0.0, 1.0, 6)
     flat = np.stack(list(np.meshgrid(u, u, indexing="ij")) + [np.zeros((6, 6))], axis=-1)

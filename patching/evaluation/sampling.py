@@ -68,6 +68,28 @@ def sample_surface(surface: BezierSurface, samples: int = 9):
     return np.concatenate(faces), np.concatenate(points), np.concatenate(normals)
 
 
+#: ``normal_turning`` takes this many patches at a time: its per-sample arrays then stay a few
+#: MB, reused, where all patches at once were ~1 GB of fresh pages on the pawn's 93k patches.
+TURNING_CHUNK = 2048
+
+
+def _grid_derivatives(nets: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """S_s and S_t of (k, d+1, d+1, 3) nets on the samples x samples grid, component first:
+    (3, k, samples, samples) each, [c, :, a, b] at (s_a, t_b).  The tensor-product form, one
+    direction at a time (S_s = d sum_ij B^{d-1}_i(s) B^d_j(t) (N[i+1, j] - N[i, j]), S_t
+    alike): two BLAS products per derivative, each result contiguous in that order."""
+    d = nets.shape[1] - 1
+    u = np.linspace(0.0, 1.0, samples)
+    b, b1 = bernstein(d, u), bernstein(d - 1, u)
+    comp = np.ascontiguousarray(nets.transpose(3, 0, 1, 2))  # (3, k, i, j)
+
+    def grid(bs: np.ndarray, bt: np.ndarray, diff: np.ndarray) -> np.ndarray:
+        # (3, k, i, j) . (a, i) -> (3, k, j, a); . (b, j) -> (3, k, a, b)
+        return d * np.tensordot(np.tensordot(diff, bs, axes=([2], [1])), bt, axes=([2], [1]))
+
+    return grid(b1, b, comp[:, :, 1:] - comp[:, :, :-1]), grid(b, b1, comp[:, :, :, 1:] - comp[:, :, :, :-1])
+
+
 def normal_turning(
     surface: BezierSurface, samples: int = 25, singular: float = 1e-6, faces: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -88,16 +110,20 @@ def normal_turning(
         keep = np.ones(len(g.faces), dtype=bool) if faces is None else np.isin(g.faces, faces)
         if not keep.any():
             continue
-        _, n, size = _grid_normals(g.coefficients[keep], samples)
-        regular = (size > singular * size.max(axis=1, keepdims=True)).reshape(-1, samples, samples)
-        regular |= ~corner  # only the four corners may be singular
-        n = n.reshape(-1, samples, samples, 3)
-        cos_s = np.einsum("kabc,kabc->kab", n[:, 1:], n[:, :-1])
-        cos_t = np.einsum("kabc,kabc->kab", n[:, :, 1:], n[:, :, :-1])
-        along_s = np.where(regular[:, 1:] & regular[:, :-1], cos_s, 1.0).min(axis=(1, 2))
-        along_t = np.where(regular[:, :, 1:] & regular[:, :, :-1], cos_t, 1.0).min(axis=(1, 2))
+        nets = g.coefficients[keep] if faces is not None else g.coefficients
         out_faces.append(g.faces[keep])
-        worst.append(np.minimum(along_s, along_t))
+        for start in range(0, nets.shape[0], TURNING_CHUNK):
+            (s0, s1, s2), (t0, t1, t2) = _grid_derivatives(nets[start : start + TURNING_CHUNK], samples)
+            n = np.stack([s1 * t2 - s2 * t1, s2 * t0 - s0 * t2, s0 * t1 - s1 * t0])  # S_s x S_t, (3, k, a, b)
+            size = np.sqrt(np.einsum("ckab,ckab->kab", n, n))
+            n /= np.maximum(size, 1e-300)
+            regular = size > singular * size.max(axis=(1, 2), keepdims=True)
+            regular |= ~corner  # only the four corners may be singular
+            cos_s = np.einsum("ckab,ckab->kab", n[:, :, 1:], n[:, :, :-1])
+            cos_t = np.einsum("ckab,ckab->kab", n[:, :, :, 1:], n[:, :, :, :-1])
+            along_s = np.where(regular[:, 1:] & regular[:, :-1], cos_s, 1.0).min(axis=(1, 2))
+            along_t = np.where(regular[:, :, 1:] & regular[:, :, :-1], cos_t, 1.0).min(axis=(1, 2))
+            worst.append(np.minimum(along_s, along_t))
     if not out_faces:
         return np.zeros(0, np.int64), np.zeros(0)
     return np.concatenate(out_faces), np.concatenate(worst)
