@@ -440,7 +440,6 @@ def figure_15(out: Path) -> None:
     from patching.mesh.control_mesh import from_arrays
     from patching.mesh.primitives import polycube
     from patching.subdivision.catmark import subdivide
-    from patching.topology.tables import Topology
 
     box = polycube([(0, 0, 0), (1, 0, 0), (2, 0, 0)], divisions=4)
     V = box.vertices.copy()
@@ -448,7 +447,6 @@ def figure_15(out: Path) -> None:
     ridge = ridge[np.argsort(V[ridge, 0])]
     V[ridge, 2] += 0.35
     box = box.with_positions(V)
-    topo = Topology(box)
     pairs = [(int(a), int(b)) for a, b in zip(ridge[:-1], ridge[1:])]
     pixar = from_arrays(box.vertices, box.face_vertices.reshape(-1, 4), creases={(min(p), max(p)): math.inf for p in pairs})
     line = [(int(v), int(ridge[min(k + 1, len(ridge) - 1)] if k + 1 < len(ridge) else ridge[k - 1])) for k, v in enumerate(ridge)]

@@ -34,11 +34,12 @@ def _vtk():
     from types import SimpleNamespace
 
     import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
-    from vtkmodules.vtkCommonCore import vtkLogger, vtkLookupTable, vtkObject, vtkPoints
-    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
-    from vtkmodules.vtkFiltersCore import vtkGlyph3D
-    from vtkmodules.vtkFiltersSources import vtkSphereSource
-    from vtkmodules.vtkRenderingCore import (
+    # the names below are returned through locals(), so read by no line here: noqa F401
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkLookupTable, vtkObject, vtkPoints  # noqa: F401
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData  # noqa: F401
+    from vtkmodules.vtkFiltersCore import vtkGlyph3D  # noqa: F401
+    from vtkmodules.vtkFiltersSources import vtkSphereSource  # noqa: F401
+    from vtkmodules.vtkRenderingCore import (  # noqa: F401
         vtkActor,
         vtkPolyDataMapper,
         vtkRenderer,

@@ -723,7 +723,6 @@ def _reference_system(mesh, op, layout, feet, points, weights, previous, quadrat
     """The step's normal equations assembled the obvious way, written here: the dense design
     matrix A = B M (B the tensor Bernstein rows of the foot points), rows sqrt(w) u^T (x) a for
     each eigenpair of Q, the step fairing lambda L^T L (umbrella L), coordinate-major unknowns."""
-    import scipy.sparse as sp
     from math import comb
 
     from patching.topology import Topology

@@ -19,7 +19,6 @@ def ssel13_vertex_point(mesh) -> np.ndarray:
     V = sum_i d_{i-1} d_{i+2} F_i / sum (eq. 3).  EP = vertex 0, every E_i regular."""
     t = Topology(mesh)
     h = t.one_ring(0)
-    n = h.size
     d = t.halfedge_interval[h]
     a = t.halfedge_interval[t.rotate(t.rotate(t.twin[h]))]  # straight on beyond E_i
     p = mesh.vertices

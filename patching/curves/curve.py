@@ -309,7 +309,7 @@ class Curve:
         whole polygon, and f -> 0, 1 give the integer-sharpness curves.  Refused: a window that
         meets another tag, an end or the closed polygon's seam; windows that overlap.
         """
-        d, closed, n = self.degree, self.closed, len(self.points)
+        d, closed = self.degree, self.closed
         s = self.sharpness
         L = self.steps_to_exact
         frac = [int(v) for v in np.flatnonzero((s > 0) & np.isfinite(s) & (s != np.floor(s)))]
