@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import sys
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -847,3 +848,20 @@ def monotone_red_primal(
     out = k.copy()
     out[y] += d
     return out
+
+
+def whole_cache_entries(root) -> list[str]:
+    """Names of the files under ``root/solves`` (``export.solve_cache``'s layout), each checked
+    to be one whole entry for its name (digests right, no temporary files); fails otherwise."""
+    from export.atomic import is_temporary_name
+    from patching.util import solve_cache
+
+    names = []
+    for bucket in sorted((Path(root) / "solves").glob("*")):
+        for f in sorted(bucket.iterdir()):
+            assert not is_temporary_name(f.name), f"temporary left: {f}"
+            data = f.read_bytes()
+            count = int.from_bytes(data[len(b"NPSC1\n") + 64 + 32 :][:4], "little")
+            assert solve_cache.decode(f.name, data, count) is not None, f"not a whole entry: {f}"
+            names.append(f.name)
+    return names

@@ -646,3 +646,51 @@ def test_no_obj_from_the_grammar_gives_a_traceback_a_bad_exit_or_a_file_on_failu
     else:
         assert out.stat().st_size > 0
     assert leftovers(d) == []
+
+
+def _ep_dense_obj(path: Path) -> None:
+    """An icosphere's triangles split into quads (EPs of valence 5 and 6 next to each other)
+    with strip intervals drawn from {1, 2, 5}: many distinct local configurations to cache."""
+    import trimesh
+
+    from export import write_obj
+    from patching.subdivision.catmark import subdivide
+
+    base = trimesh.creation.icosphere(subdivisions=2)
+    quad = subdivide(patching.from_arrays(base.vertices, base.faces), 1, rules="opensubdiv")
+    topo = patching.Topology(quad)
+    rng = np.random.default_rng(0)
+    values = rng.choice([1.0, 2.0, 5.0], topo.n_strips)
+    first = np.unique(topo.edge_strip, return_index=True)[1]
+    intervals = {tuple(int(x) for x in topo.edges[e]): float(values[topo.edge_strip[e]]) for e in first}
+    write_obj(patching.from_arrays(quad.vertices, quad.quads(), intervals=intervals), path)
+
+
+def test_sigterm_while_the_cache_is_written_leaves_only_whole_entries(tmp_path):
+    """A real SIGTERM as soon as the first entry of an empty cache is on disk (the writer
+    thread has more to write): exit 143, one line, and the cache holds whole entries only; a
+    later build over that cache is the same surface and fills in the rest."""
+    from tests.helpers import whole_cache_entries
+
+    _ep_dense_obj(tmp_path / "m.obj")
+    cache = tmp_path / "cache"
+    env = dict(ENV, NUPATCH_CACHE_DIR=str(cache))
+    p = subprocess.Popen([*NUPATCH, "build", "m.obj", "-o", "m.step", "-q"], cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(cache.glob("solves/*/*")) and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.002)
+    assert p.poll() is None, "the build ended before its first cache entry: a larger mesh is needed"
+    p.send_signal(signal.SIGTERM)
+    err = p.communicate(timeout=60)[1]
+    assert p.returncode == 143, err
+    assert err.strip() == "nupatch: terminated by SIGTERM"
+    partial = whole_cache_entries(cache)
+    assert not (tmp_path / "m.step").exists()
+    again = subprocess.run([*NUPATCH, "build", "m.obj", "-o", "m.step", "-q"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    full = whole_cache_entries(cache)
+    assert set(partial) < set(full)  # the interrupted run left some, the next wrote the others
+    plain = subprocess.run([*NUPATCH, "build", "m.obj", "-o", "plain.step", "-q", "--no-cache"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert plain.returncode == 0, plain.stderr
+    data = lambda path: path.read_text().split("DATA;", 1)[1]  # noqa: E731 - the header holds the time stamp
+    assert data(tmp_path / "m.step") == data(tmp_path / "plain.step")

@@ -9,6 +9,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from export import solve_cache as disk
 from export.atomic import temporary_name
 from patching.util import solve_cache
 from tests.conftest import REPO
-from tests.helpers import clear_package_caches
+from tests.helpers import clear_package_caches, whole_cache_entries
 
 L_BRACKET = REPO / "models" / "l_bracket.obj"
 
@@ -149,3 +150,58 @@ def test_concurrent_writers_readers_and_evictors(tmp_path):
         (a,) = solve_cache.decode(key, store.get(key), 1)
         j = [i for i in range(40) if _key(i) == key][0]
         assert (a == j).all()
+
+
+def test_a_background_store_writes_every_entry_by_close(tmp_path):
+    store = disk.DiskStore(tmp_path, background=True)
+    keys = [_key(i) for i in range(40)]
+    for i, key in enumerate(keys):
+        store.put(key, solve_cache.encode(key, [np.full(100, float(i))]))
+    store.close()
+    assert sorted(whole_cache_entries(tmp_path)) == sorted(keys)
+    assert store.written == sum(len(solve_cache.encode(k, [np.full(100, float(i))])) for i, k in enumerate(keys))
+
+
+def test_an_abandoned_background_store_drops_the_entries_not_begun(tmp_path):
+    import threading
+
+    store = disk.DiskStore(tmp_path, background=True)
+    gate, started = threading.Event(), threading.Event()
+    write = store._write
+
+    def held(key, data):  # the writer thread stops inside its first entry until the gate opens
+        started.set()
+        assert gate.wait(30)
+        write(key, data)
+
+    store._write = held
+    keys = [_key(i) for i in range(10)]
+    for key in keys:
+        store.put(key, solve_cache.encode(key, [np.ones(10)]))
+    assert started.wait(30)
+    closer = threading.Thread(target=store.close, kwargs={"abandon": True})
+    closer.start()
+    deadline = time.monotonic() + 30
+    while store._pending.qsize() != 1 and time.monotonic() < deadline:  # drained to the stop mark
+        time.sleep(0.001)
+    gate.set()
+    closer.join(30)
+    assert not closer.is_alive()
+    assert whole_cache_entries(tmp_path) == [keys[0]]  # the one in progress ends whole, the rest dropped
+
+
+def test_using_disk_cache_waits_for_its_writes_and_drops_them_when_interrupted(tmp_path):
+    with disk.using_disk_cache(root=tmp_path / "a") as store:
+        for i in range(30):
+            store.put(_key(i), solve_cache.encode(_key(i), [np.full(50, float(i))]))
+    assert len(whole_cache_entries(tmp_path / "a")) == 30  # all on disk when the block has ended
+    try:
+        with disk.using_disk_cache(root=tmp_path / "b") as store:
+            for i in range(30):
+                store.put(_key(i), solve_cache.encode(_key(i), [np.full(50, float(i))]))
+            raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        pass
+    else:  # pragma: no cover
+        raise AssertionError("the interrupt was swallowed")
+    assert len(whole_cache_entries(tmp_path / "b")) <= 30  # whole entries only, however many were begun
