@@ -87,15 +87,10 @@ def test_points_beside_an_equal_spoke_crease_vertex_read_the_crease_knots(sharpn
     # both crossing edges at the vertex: their weights on the crease points are the edge
     # rule across (a number) times the vertex rule along
     for i in (CREASE_ROW - 1, CREASE_ROW + 1):
-        e = _edge(topo, vid(i, j), crease[j])
+        e = topo.edge_id(vid(i, j), crease[j])
         row = s[mesh.n_faces + e].toarray().ravel()
         along = row[crease][near]
         np.testing.assert_allclose(along / along.sum(), expected[near], rtol=0, atol=1e-14)
-
-
-def _edge(topo: Topology, a: int, b: int) -> int:
-    hit = np.flatnonzero(((topo.edges[:, 0] == a) & (topo.edges[:, 1] == b)) | ((topo.edges[:, 0] == b) & (topo.edges[:, 1] == a)))
-    return int(hit[0])
 
 
 def test_reference_is_the_uniform_rule_on_equal_intervals():

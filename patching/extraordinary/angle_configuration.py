@@ -872,11 +872,11 @@ def _optimise_batch(dbar, st, theta0, theta_hat, l_hat, omega, max_iterations, s
     theta, r = prob.residual(x, every)
     rows = np.flatnonzero(~(np.sum(r * r, axis=1) < 1e-24 * n))  # else optimal (valence 4: the NURBS configuration)
     _descend(prob, x, theta, r, rows, iterations, converged, max_iterations)
-    _polish(prob, x, theta, r, rows[converged[rows] & (iterations[rows] > 0)])
+    rows = rows[converged[rows] & (iterations[rows] > 0)]
+    _polish(prob, x, theta, r, rows)
     # A saddle of E(u, s): pushed off it, then descended in (u, s) together (damped Newton
     # steps lower E, so they leave the saddle; Newton alone would go back to it).
     p = x.shape[1]
-    rows = rows[converged[rows] & (iterations[rows] > 0)]
     for _ in range(_SADDLE_ROUNDS):
         rows = _leave_saddles(prob, x, theta, r, rows)
         if rows.size == 0:
@@ -959,15 +959,15 @@ def _leave_saddles(prob: _BatchProblem, x, theta, r, rows: np.ndarray, push: boo
     if not np.any(saddle) or not push:
         return rows[saddle]
     out = rows[saddle]
-    push = vectors[saddle][:, :, 0]
-    push *= _SADDLE_PUSH / np.max(np.abs(push), axis=1, keepdims=True)
+    step = vectors[saddle][:, :, 0]
+    step *= _SADDLE_PUSH / np.max(np.abs(step), axis=1, keepdims=True)
     best = np.sum(r[out] ** 2, axis=1)
     new_x, new_theta, new_r = x[out].copy(), theta[out].copy(), r[out].copy()
     for sign in (1.0, -1.0):
-        trial_theta, trial_r = prob.residual(x[out] + sign * push, out)
+        trial_theta, trial_r = prob.residual(x[out] + sign * step, out)
         cost = np.sum(trial_r**2, axis=1)
         lower = cost < best  # NaN (out of (0, pi)) never is
-        new_x[lower] = x[out][lower] + sign * push[lower]
+        new_x[lower] = x[out][lower] + sign * step[lower]
         new_theta[lower], new_r[lower], best[lower] = trial_theta[lower], trial_r[lower], cost[lower]
     x[out], theta[out], r[out] = new_x, new_theta, new_r
     return out

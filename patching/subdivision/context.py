@@ -153,28 +153,26 @@ class _Context:
         base = self.mesh.face_offsets[self.face[h]]
         return h, base + local
 
-    @cached_property
-    def regular_line_vertex(self) -> np.ndarray:
-        """(v,) bool: straight lines continue through v (interior, valence 4, quads, untagged)."""
+    def _regular_interior(self, rule: int) -> np.ndarray:
+        """(v,) bool: interior, valence 4, four quads around it, parent rule ``rule``."""
         return (
             ~self.v_boundary
             & (self.valence == 4)
             & ~self.v_nonquad
-            & (self.parent.rule == SMOOTH)
+            & (self.parent.rule == rule)
             & (self.n_faces_at == 4)
         )
+
+    @cached_property
+    def regular_line_vertex(self) -> np.ndarray:
+        """(v,) bool: straight lines continue through v (interior, valence 4, quads, untagged)."""
+        return self._regular_interior(SMOOTH)
 
     @cached_property
     def regular_crease_vertex(self) -> np.ndarray:
         """(v,) bool: interior, valence 4, four quads, a CREASE vertex of the parent level
         (whether its two sharp edges are opposite is read per half-edge in ``ahead``)."""
-        return (
-            ~self.v_boundary
-            & (self.valence == 4)
-            & ~self.v_nonquad
-            & (self.parent.rule == CREASE)
-            & (self.n_faces_at == 4)
-        )
+        return self._regular_interior(CREASE)
 
     @cached_property
     def regular_boundary_vertex(self) -> np.ndarray:
@@ -207,8 +205,9 @@ class _Context:
         hs = np.flatnonzero(self.regular_line_vertex[b])
         c = self.nxt[self.twin[self.nxt[hs]]]
         out[hs] = self.d_h[c]
-        # along an interior crease: h and its straight continuation c are the vertex's two
-        # sharp edges (a CREASE vertex has exactly two, so they are opposite spokes)
+        # along an interior crease: h sharp and its straight continuation c sharp too (a
+        # CREASE vertex has exactly two sharp edges, so these are they, opposite spokes; where
+        # the crease turns, c is smooth and h keeps its own interval)
         lev = self.parent
         hc = np.flatnonzero(self.regular_crease_vertex[b] & lev.sharp[self.eoh])
         c = self.nxt[self.twin[self.nxt[hc]]]
