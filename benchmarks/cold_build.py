@@ -5,7 +5,8 @@ same rotation, also without and with the cache.  The mesh is ``benchmarks/build.
 split into quads once, 15k faces, half of the vertices EPs of valence 3, 5 and 6, intervals
 drawn from {1, 2, 5} per strip.  ``--plain`` adds this tree without the monotone spoke step
 (``g1_patches.MONOTONE_SPOKES = False``, the red solve before issue 19).  Each child prints the wall and CPU seconds of the build alone
-(the mesh read and the imports excluded), split into user and system
+(the mesh read and the imports excluded; ``--operators``: also the whole operator read back from
+``export.operator_cache``, filled by the warm-up round, as ``nupatch build`` takes it), split into user and system
 time (``getrusage``: on a VM most of the system time is first touches of fresh pages), and the
 process's peak resident memory (which includes the imports and the mesh).  Run by hand:
 ``.venv/bin/python benchmarks/cold_build.py [--runs 3] [--before DIR] [--plain]``.
@@ -34,22 +35,30 @@ mesh = patching.read_mesh(sys.argv[1])
 if len(sys.argv) > 3 and sys.argv[3] == "plain":  # the red solve without the monotone spoke step
     from patching.extraordinary import g1_patches
     g1_patches.MONOTONE_SPOKES = False
+import contextlib
+from export.operator_cache import operator_for, using_operator_cache
+from export.solve_cache import using_disk_cache
 if sys.argv[2] == "cache":
-    from export.solve_cache import using_disk_cache
     context = using_disk_cache()
+elif sys.argv[2] == "operator":  # both caches, as nupatch build uses them
+    context = contextlib.ExitStack()
+    context.enter_context(using_disk_cache())
+    operators = context.enter_context(using_operator_cache())
 else:
-    import contextlib
     context = contextlib.nullcontext()
 import resource
 with context:
     usage = resource.getrusage(resource.RUSAGE_SELF)
     wall, cpu = time.perf_counter(), time.process_time()
-    op = patching.build_operator(mesh)
+    if sys.argv[2] == "operator":
+        op = operator_for(mesh, patching.BuildOptions(), operators)
+    else:
+        op = patching.build_operator(mesh)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     after = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({"wall": wall, "cpu": cpu, "nnz": int(op.matrix.nnz), "user": after.ru_utime - usage.ru_utime,
                   "sys": after.ru_stime - usage.ru_stime, "rss": after.ru_maxrss / 1024,
-                  "faults": after.ru_minflt - usage.ru_minflt}))
+                  "faults": after.ru_minflt - usage.ru_minflt, "hit": sys.argv[2] == "operator" and operators.hits == 1}))
 """
 
 
@@ -59,6 +68,8 @@ def main() -> None:
     parser.add_argument("--before", help="a second checkout (e.g. main's worktree), timed without and with the cache")
     parser.add_argument("--plain", action="store_true",
                         help="also this tree without the monotone spoke step (g1_patches.MONOTONE_SPOKES = False), without and with the cache")
+    parser.add_argument("--operators", action="store_true",
+                        help="also this tree with the whole-operator cache (export.operator_cache) filled, as nupatch build reads it")
     args = parser.parse_args()
 
     from build import ep_mesh
@@ -66,6 +77,8 @@ def main() -> None:
 
     mesh = ep_mesh("coarse")
     sides = {"no cache": (str(ROOT), "none"), "cache": (str(ROOT), "cache")}
+    if args.operators:
+        sides["operator"] = (str(ROOT), "operator")
     if args.plain:
         sides["plain"] = (str(ROOT), "none", "plain")
         sides["plain cache"] = (str(ROOT), "cache", "plain")
@@ -84,7 +97,10 @@ def main() -> None:
                 out = subprocess.run([sys.executable, "-c", CHILD, str(obj), mode, *plain], env=env, check=True,  # cwd: not a checkout
                                      capture_output=True, text=True, cwd=tmp).stdout  # ("-c" puts it first on sys.path)
                 if run:
-                    times[name].append(json.loads(out.strip().splitlines()[-1]))
+                    row = json.loads(out.strip().splitlines()[-1])
+                    if mode == "operator" and not row["hit"]:
+                        raise SystemExit("the operator cache was filled by the warm-up round but missed")
+                    times[name].append(row)
     load = os.getloadavg()[0]
     print(f"coarse: {mesh.n_faces} faces, build_operator in a fresh process, {args.runs} runs alternated, median (min),"
           f" load {start_load:.1f} -> {load:.1f}")

@@ -35,7 +35,8 @@ class BuildJob:
     builds (semi-sharp tags refined near the features: there the leaves' regular regions are
     thousands of patches of one B-spline, the file otherwise tens of MB); intervals: how
     strips without interval tags get theirs (``patching.topology.intervals``); cache: keep solved
-    local configurations on disk between builds (``export.solve_cache``; the command line's default)."""
+    local configurations and whole operators on disk between builds (``export.solve_cache``,
+    ``export.operator_cache``; the command line's default)."""
 
     mesh: str
     out: str
@@ -61,13 +62,14 @@ class BuildResult:
 def run_build(job: BuildJob, stage: Callable[[str], None] = lambda name: None) -> tuple[int, int]:
     """Read, build, make the B-rep and write one mesh; returns (faces, patches).  ``stage(name)``
     is called as each stage starts.  Raises the NupatchError family on bad input."""
+    from export.operator_cache import using_operator_cache
     from export.solve_cache import using_disk_cache
 
-    with using_disk_cache(job.cache):
-        return _run_build(job, stage)
+    with using_disk_cache(job.cache), using_operator_cache(job.cache) as operators:
+        return _run_build(job, stage, operators)
 
 
-def _run_build(job: BuildJob, stage: Callable[[str], None]) -> tuple[int, int]:
+def _run_build(job: BuildJob, stage: Callable[[str], None], operators) -> tuple[int, int]:
     from export.brep import to_shape
     from export.formats import write
     from export.inputs import read_control_mesh
@@ -79,7 +81,9 @@ def _run_build(job: BuildJob, stage: Callable[[str], None]) -> tuple[int, int]:
     # --pack merges the patches of one mesh: semi-sharp tags then take the global steps while
     # they fit (``patching.operator.refinement``), not the adaptive path.
     options = BuildOptions.of(job.options, refinement="global") if job.pack and exact else job.options
-    surface = patching.build(mesh, options)
+    from export.operator_cache import operator_for
+
+    surface = patching.build(mesh, options, operator=operator_for(mesh, options, operators))
     stage(STAGES[2])
     # By default the adaptive path's output is packed: its patches carry their knot spans.
     adaptive = bool(surface.groups) and all(g.spans is not None for g in surface.groups)

@@ -30,12 +30,12 @@ import queue
 import re
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from patching.util.solve_cache import SolveStore, set_store
 
-__all__ = ["DiskStore", "cache_directory", "cache_disabled", "cache_max_bytes", "using_disk_cache"]
+__all__ = ["DiskStore", "cache_directory", "cache_disabled", "cache_max_bytes", "closed_at_end", "evict_least_recent", "megabytes_from_env", "using_disk_cache"]
 
 #: Environment variable that disables the cache (any value but "", "0").
 NO_CACHE_ENV = "NUPATCH_NO_CACHE"
@@ -64,12 +64,57 @@ def cache_disabled() -> bool:
 
 def cache_max_bytes() -> int:
     """The size cap: ``$NUPATCH_CACHE_MAX_MB`` MB (a non-negative number), else 256 MB."""
-    text = os.environ.get(MAX_MB_ENV, "")
+    return megabytes_from_env(MAX_MB_ENV, DEFAULT_MAX_MB)
+
+
+def megabytes_from_env(name: str, default_mb: float) -> int:
+    """Bytes of the environment variable ``name`` read as MB (non-negative; unset, empty or
+    not a number: ``default_mb``)."""
+    text = os.environ.get(name, "")
     try:
-        mb = float(text) if text else DEFAULT_MAX_MB
+        mb = float(text) if text else default_mb
     except ValueError:
-        mb = DEFAULT_MAX_MB
-    return int(max(mb, 0.0) * 1e6) if mb == mb else int(DEFAULT_MAX_MB * 1e6)
+        mb = default_mb
+    return int(max(mb, 0.0) * 1e6) if mb == mb else int(default_mb * 1e6)
+
+
+def evict_least_recent(found: list[tuple[float, int, str]], cap: int) -> int:
+    """If the files ``found`` ((mtime, size, path)) hold more than ``cap`` bytes, remove the
+    least recently used until they hold at most ``EVICT_TO`` of it; returns how many this
+    call removed.  Safe beside other builds (module docstring): a file another build removed
+    first is skipped, one that cannot be removed is left."""
+    total = sum(size for _, size, _ in found)
+    if total <= cap:
+        return 0
+    goal = int(EVICT_TO * cap)
+    removed = 0
+    for _, size, path in sorted(found):
+        if total <= goal:
+            break
+        try:
+            os.remove(path)
+            removed += 1
+        except FileNotFoundError:
+            pass  # another build evicted it first
+        except OSError:
+            continue
+        total -= size
+    return removed
+
+
+@contextlib.contextmanager
+def closed_at_end(close: Callable[[bool], None]) -> Iterator[None]:
+    """Run the block, then ``close(interrupted)``: True when the block was interrupted
+    (KeyboardInterrupt: Ctrl-C, and SIGTERM/SIGHUP as ``export.signals.Terminated``), so
+    that a cache drops the writes not yet begun instead of waiting for them."""
+    interrupted = False
+    try:
+        yield
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
+    finally:
+        close(interrupted)
 
 
 class DiskStore:
@@ -170,25 +215,7 @@ class DiskStore:
         """If the entries hold more than ``max_bytes`` (default ``self.max_bytes``), remove the
         least recently used until they hold at most ``EVICT_TO`` of it; returns how many
         this call removed (module docstring: safe beside other builds)."""
-        cap = self.max_bytes if max_bytes is None else int(max_bytes)
-        found = self.entries()
-        total = sum(size for _, size, _ in found)
-        if total <= cap:
-            return 0
-        goal = int(EVICT_TO * cap)
-        removed = 0
-        for _, size, path in sorted(found):
-            if total <= goal:
-                break
-            try:
-                os.remove(path)
-                removed += 1
-            except FileNotFoundError:
-                pass  # another build evicted it first
-            except OSError:
-                continue
-            total -= size
-        return removed
+        return evict_least_recent(self.entries(), self.max_bytes if max_bytes is None else int(max_bytes))
 
 
 @contextlib.contextmanager
@@ -199,16 +226,14 @@ def using_disk_cache(enabled: bool = True, root: str | os.PathLike | None = None
     block is interrupted (KeyboardInterrupt, SIGTERM), drops those not yet begun."""
     store = DiskStore(root, background=True) if enabled and not cache_disabled() else None
     previous = set_store(store)
-    interrupted = False
-    try:
-        yield store
-    except KeyboardInterrupt:  # Ctrl-C, and SIGTERM/SIGHUP (export.signals.Terminated)
-        interrupted = True
-        raise
-    finally:
+
+    def close(interrupted: bool) -> None:
         set_store(previous)
         if store is not None:
             store.close(abandon=interrupted)
             if store.written and not interrupted:
                 with contextlib.suppress(OSError):
                     store.evict()
+
+    with closed_at_end(close):
+        yield store

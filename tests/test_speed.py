@@ -182,9 +182,14 @@ def test_cli_cache_switches(tmp_path, run_cli, monkeypatch):
     assert entries() == []
     monkeypatch.delenv("NUPATCH_NO_CACHE")
     assert run_cli("build", L_BRACKET, "-o", out, "-q").returncode == 0
-    assert entries()
+    operators = [p.name for p in (cache / "operators").iterdir()]
+    solves = sorted(p.name for p in (cache / "solves").rglob("*") if p.is_file())
+    assert operators and solves and sorted(solves + operators) == entries()
     with using_disk_cache(root=cache) as store:
-        assert store is not None and all(store.get(k) for k in entries())
+        assert store is not None and all(store.get(k) for k in solves)
+    from export.operator_cache import OperatorCache
+
+    assert all(OperatorCache(cache).load(name.removesuffix(".npop"), "l_bracket") for name in operators)
 
 
 def test_build_start_imports_only_what_it_needs():

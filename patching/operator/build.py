@@ -82,13 +82,19 @@ def build_operator(
     return assemble(mesh, topo, options, force_extraordinary)
 
 
-def build(mesh: ControlMesh, options: BuildOptions | None = None, **option_fields: str) -> BezierSurface:
+def build(
+    mesh: ControlMesh, options: BuildOptions | None = None, *, operator: SurfaceOperator | None = None, **option_fields: str
+) -> BezierSurface:
     """The patched surface of a mesh: ``build_operator(mesh, options).evaluate(mesh.vertices)``
     (``refinement="global"`` for ``export.pack``, which needs the patches of one mesh).
+    ``operator``: that M, already built for this mesh's topology, intervals, tags and these
+    options (by ``build_operator``, or kept from an earlier build: ``operator.archive``).
 
     MeshError when no face gives a patch (holes, interpolateboundary 0, zero intervals): an
     empty surface is no solid or shell, and nothing the exporters could write."""
-    surface = build_operator(mesh, BuildOptions.of(options, **option_fields)).evaluate(mesh.vertices)
+    if operator is None:
+        operator = build_operator(mesh, BuildOptions.of(options, **option_fields))
+    surface = operator.evaluate(mesh.vertices)
     if surface.n_patches == 0:
         causes = [f"{len(mesh.holes)} of {mesh.n_faces} faces are holes"] if mesh.holes else []
         if mesh.interpolate_boundary == 0:
