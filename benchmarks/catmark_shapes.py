@@ -6,6 +6,9 @@ takes longer than ``--timeout`` seconds is stopped and reported as such.  Run by
 ``.venv/bin/python benchmarks/catmark_shapes.py [--timeout 120] [--before DIR] [--read] [NAME ...]``.
 With ``--read`` each STEP file is read back by OpenCASCADE's ``STEPControl_Reader`` (through
 ``export.step.read_step``, in a process of its own): the seconds of the read alone.
+With ``--moved`` each side also builds, right after, a copy of the shape whose control points
+moved (by up to 1% of its size, tags and intervals kept): the next build of an edit cycle,
+which takes the operator from ``export.operator_cache`` (rows "now moved", "before moved").
 """
 
 from __future__ import annotations
@@ -63,15 +66,28 @@ def read_back(tree: str, path: Path, timeout: float) -> str:
     return proc.stdout.strip() if proc.returncode == 0 else (proc.stderr.strip().splitlines() or ["failed"])[-1][:40]
 
 
+def _moved(mesh):
+    """The mesh with its control points moved by up to 1% of its bounding box's diagonal."""
+    import dataclasses
+
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+    return dataclasses.replace(mesh, vertices=mesh.vertices + rng.uniform(-0.01, 0.01, mesh.vertices.shape) * size / np.sqrt(3))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("names", nargs="*", help="shape names (default: every catmark_*)")
     parser.add_argument("--timeout", type=float, default=120.0)
     parser.add_argument("--before", help="a second checkout (e.g. main's worktree)")
     parser.add_argument("--read", action="store_true", help="time reading each STEP file back")
+    parser.add_argument("--moved", action="store_true", help="also build each shape again with moved control points")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT))
     import patching
+    from export import write_obj
 
     paths = [SHAPES / f"{n}.obj" for n in args.names] if args.names else sorted(SHAPES.glob("catmark_*.obj"))
     sides = {"now": str(ROOT)}
@@ -79,22 +95,30 @@ def main() -> None:
         sides["before"] = str(Path(args.before).resolve())
     print(f"load {os.getloadavg()[0]:.1f} at the start (2 cores)")
     read_head = f" {'read wall, cpu s':>16s}" if args.read else ""
-    print(f"{'shape':28s} {'faces':>6s} {'side':>6s} {'patches':>8s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}{read_head}  status")
+    print(f"{'shape':28s} {'faces':>6s} {'side':>12s} {'patches':>8s} {'B-rep faces':>11s} {'wall s':>7s} {'cpu s':>7s} {'MB':>7s}{read_head}  status")
     with tempfile.TemporaryDirectory() as tmp:
         for path in paths:
+            moved = None
             try:
-                faces = patching.read_mesh(path).n_faces
+                mesh = patching.read_mesh(path)
+                faces = mesh.n_faces
+                if args.moved:
+                    moved = Path(tmp) / f"{path.stem}_moved.obj"
+                    write_obj(_moved(mesh), moved)
             except patching.NupatchError:  # refused input: count the OBJ's faces
                 faces = sum(line.startswith("f ") for line in path.read_text().splitlines())
-            for side, tree in sides.items():
+            runs = [(side, tree, path) for side, tree in sides.items()]
+            if moved is not None:
+                runs = [r for side, tree in sides.items() for r in ((side, tree, path), (f"{side} moved", tree, moved))]
+            for side, tree, mesh_path in runs:
                 out = Path(tmp) / f"{side}.step"
                 out.unlink(missing_ok=True)
-                status, wall, cpu, n_patches = build(tree, path, out, args.timeout)
+                status, wall, cpu, n_patches = build(tree, mesh_path, out, args.timeout)
                 size = out.stat().st_size / 1e6 if out.exists() else float("nan")
                 patches = out.read_text(errors="replace").count("ADVANCED_FACE(") if out.exists() else 0
                 flag = " (over 5 MB)" if faces < 1000 and size > 5 else ""
                 read = f" {read_back(tree, out, args.timeout) if out.exists() else '-':>16s}" if args.read else ""
-                print(f"{path.stem:28s} {faces:6d} {side:>6s} {n_patches:8d} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}{read}  {status}{flag}",
+                print(f"{path.stem:28s} {faces:6d} {side:>12s} {n_patches:8d} {patches:11d} {wall:7.1f} {cpu:7.1f} {size:7.2f}{read}  {status}{flag}",
                       flush=True)
     print(f"load {os.getloadavg()[0]:.1f} at the end")
 

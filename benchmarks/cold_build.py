@@ -36,11 +36,11 @@ if len(sys.argv) > 3 and sys.argv[3] == "plain":  # the red solve without the mo
     from patching.extraordinary import g1_patches
     g1_patches.MONOTONE_SPOKES = False
 import contextlib
-from export.operator_cache import operator_for, using_operator_cache
 from export.solve_cache import using_disk_cache
 if sys.argv[2] == "cache":
     context = using_disk_cache()
 elif sys.argv[2] == "operator":  # both caches, as nupatch build uses them
+    from export.operator_cache import operator_for, using_operator_cache
     context = contextlib.ExitStack()
     context.enter_context(using_disk_cache())
     operators = context.enter_context(using_operator_cache())

@@ -474,8 +474,8 @@ def _parser(only: str | None = None) -> argparse.ArgumentParser:
         )
         p.add_argument(
             "--no-cache", action="store_true",
-            help="solve every local configuration afresh, without the on-disk cache of solved ones "
-            "($XDG_CACHE_HOME/nupatch; also NUPATCH_NO_CACHE=1)",
+            help="solve every local configuration and assemble the operator afresh, without the on-disk "
+            "caches of solved ones ($XDG_CACHE_HOME/nupatch; also NUPATCH_NO_CACHE=1)",
         )
         p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr (errors and warnings still)")
         add_intervals_argument(p)
