@@ -187,6 +187,8 @@ class OperatorCache:
         try:
             digest = hashlib.sha256()
             for piece in _pieces(arrays, rows):
+                if self._abandon.is_set():
+                    raise _Abandoned
                 digest.update(piece)
             header = {"key": key, "scalars": scalars, "arrays": rows, "data_bytes": data_bytes, "digest": digest.hexdigest()}
             text = json.dumps(header).encode("utf-8")
@@ -206,13 +208,21 @@ class OperatorCache:
             pass
 
     def close(self, abandon: bool = False) -> None:
-        """Wait for the writes in progress (abandon: stop them, leaving no file), then, if
-        this cache wrote an entry, evict down to the cap."""
+        """Wait for the writes in progress (abandon, or an interrupt while waiting: stop them
+        at their next chunk, leaving no file), then, if this cache wrote an entry, evict down
+        to the cap."""
         if abandon:
             self._abandon.set()
-        for writer in self._writers:
-            writer.join()
-        self._writers.clear()
+        try:
+            for writer in self._writers:
+                writer.join()
+        except KeyboardInterrupt:  # interrupted while waiting: stop the writes, then go on up
+            self._abandon.set()
+            for writer in self._writers:
+                writer.join()
+            raise
+        finally:
+            self._writers.clear()
         if self.written and not abandon:
             self.evict()
 

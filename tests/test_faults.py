@@ -694,3 +694,43 @@ def test_sigterm_while_the_cache_is_written_leaves_only_whole_entries(tmp_path):
     assert plain.returncode == 0, plain.stderr
     data = lambda path: path.read_text().split("DATA;", 1)[1]  # noqa: E731 - the header holds the time stamp
     assert data(tmp_path / "m.step") == data(tmp_path / "plain.step")
+
+
+def test_sigterm_while_the_operator_is_written_leaves_no_partial_entry(tmp_path):
+    """A real SIGTERM while the operator cache's writer has its temporary file open: exit 143,
+    one line, no output, no temporary file and no partial entry left (an entry there is whole);
+    the next build gives the same surface as --no-cache and leaves a whole entry."""
+    import trimesh
+
+    from export import write_obj
+    from export.atomic import is_temporary_name
+    from export.operator_cache import OperatorCache
+    from patching.operator.archive import operator_key
+    from patching.subdivision.catmark import subdivide
+
+    base = trimesh.creation.icosphere(subdivisions=3)  # 3,840 quads after one step: M of ~45 MB
+    write_obj(subdivide(patching.from_arrays(base.vertices, base.faces), 1, rules="opensubdiv"), tmp_path / "m.obj")
+    cache = tmp_path / "cache"
+    env = dict(ENV, NUPATCH_CACHE_DIR=str(cache))
+    p = subprocess.Popen([*NUPATCH, "build", "m.obj", "-o", "m.step", "-q"], cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True)
+    writing = lambda: [f for f in (cache / "operators").glob("*") if is_temporary_name(f.name)] if (cache / "operators").is_dir() else []  # noqa: E731
+    deadline = time.monotonic() + 240
+    while not writing() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert p.poll() is None, "the build ended before its operator was being written: a larger mesh is needed"
+    p.send_signal(signal.SIGTERM)
+    err = p.communicate(timeout=60)[1]
+    assert p.returncode == 143, err
+    assert err.strip() == "nupatch: terminated by SIGTERM"
+    assert not (tmp_path / "m.step").exists()
+    assert [f.name for f in (cache / "operators").iterdir() if not f.name.endswith(".npop")] == []
+    store = OperatorCache(cache)
+    key = operator_key(patching.read_mesh(tmp_path / "m.obj"), patching.BuildOptions())
+    assert all(store.load(Path(path).stem, "m") is not None for _, _, path in store.entries())  # whole, or none
+    again = subprocess.run([*NUPATCH, "build", "m.obj", "-o", "m.step", "-q"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert store.load(key, "m") is not None
+    plain = subprocess.run([*NUPATCH, "build", "m.obj", "-o", "plain.step", "-q", "--no-cache"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert plain.returncode == 0, plain.stderr
+    data = lambda path: path.read_text().split("DATA;", 1)[1]  # noqa: E731 - the header holds the time stamp
+    assert data(tmp_path / "m.step") == data(tmp_path / "plain.step")
