@@ -177,3 +177,21 @@ def test_face_lines_are_those_of_percent_d():
         text = format_obj(mesh)
         lines = text.splitlines(keepends=True)
         assert "".join(line for line in lines if line.startswith("f")) == _face_lines(mesh)
+
+
+@pytest.mark.parametrize("mesh", _nonuniform())
+def test_retagged_topology_equals_the_built_one(mesh):
+    """``Topology.retagged``: a mesh's connectivity tables reused for the same faces with other
+    tags (the adaptive path's windows) equal those built afresh, and the tag tables are the
+    new tags' own, computed (and checked) when first asked for."""
+    from patching.errors import TagError
+
+    base = Topology(replace(mesh, intervals={}, creases={}, corners={}))
+    assert np.all(base.strip_interval == 1.0) and not base.edge_sharpness.any()  # the bare mesh's, cached
+    creased = replace(mesh, creases={tuple(int(x) for x in base.edges[3]): 2.0})
+    _same_topology(base.retagged(creased), Topology(_fresh(creased)))
+    missing = next((0, v) for v in range(1, mesh.n_vertices) if Topology(mesh).edge_id(0, v) < 0)
+    with pytest.raises(TagError, match=f"edge {missing[0]}-{missing[1]}"):
+        base.retagged(replace(mesh, creases={missing: 1.0})).edge_sharpness
+    with pytest.raises(ValueError, match="other faces"):
+        base.retagged(replace(mesh, face_vertices=np.roll(mesh.face_vertices, 1)))

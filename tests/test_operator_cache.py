@@ -174,15 +174,39 @@ def test_the_cap_keeps_the_most_recently_used(tmp_path):
     assert not small.path(keys[0]).exists()
 
 
-def test_an_abandoned_write_leaves_no_file(tmp_path):
+class _AbandonLater:
+    """An abandon flag that is raised at its ``calls``-th look, noting what the entry's folder
+    held then (the writer looks once per piece of the digest pass and once per chunk)."""
+
+    def __init__(self, calls: int, folder) -> None:
+        self.calls, self.folder, self.seen = calls, folder, None
+
+    def is_set(self) -> bool:
+        self.calls -= 1
+        if self.calls == 0:
+            self.seen = sorted(p.name for p in self.folder.iterdir())
+        return self.calls <= 0
+
+    def set(self) -> None:
+        self.calls = 0
+
+
+@pytest.mark.parametrize("when", ["before the first chunk", "in the middle of the file"])
+def test_an_abandoned_write_leaves_no_file(tmp_path, monkeypatch, when):
     mesh = MESHES["eps_random_intervals"]
+    op = patching.build_operator(mesh)
+    monkeypatch.setattr(operator_cache, "CHUNK", 256)  # many chunks, so many looks at the flag
     cache = OperatorCache(tmp_path, background=True)
-    cache._abandon.set()  # as close(abandon=True) does before the writer's first chunk
+    digest_looks = 2 * len(operator_arrays(op)[0])  # at most: one a piece, an array and its padding
+    cache._abandon = _AbandonLater(1 if when == "before the first chunk" else digest_looks + 20, cache.directory)
     key = operator_key(mesh, BuildOptions())
-    cache.save(key, patching.build_operator(mesh))
-    cache.close(abandon=True)
+    cache.save(key, op)
+    cache.close()  # waits for the writer, which stopped at the flag
+    if when == "in the middle of the file":
+        (tmp,) = cache._abandon.seen  # the temporary file was there, part written
+        assert tmp.startswith(".nupatch-") and tmp.endswith(".tmp")
     assert not cache.path(key).exists()
-    assert list(cache.directory.iterdir()) == []  # no temporary file either
+    assert not cache.directory.exists() or list(cache.directory.iterdir()) == []  # no temporary file left
 
 
 def test_nupatch_build_reads_the_entry_and_no_cache_does_not(tmp_path, cli_main, monkeypatch):

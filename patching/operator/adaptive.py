@@ -64,6 +64,7 @@ from patching.operator.split_sides import adaptive_layout, split_side_topology
 from patching.options import BuildOptions
 from patching.subdivision.catmark import subdivision_operator
 from patching.surface import CORNER_PARAMETERS, OperatorGroup, SurfaceOperator
+from patching.topology.cache import remember, topology_of
 from patching.topology.tables import Topology
 
 __all__ = [
@@ -210,8 +211,8 @@ def _submesh(mesh: ControlMesh, topo: Topology, faces: np.ndarray, clear_semi_sh
     """The faces ``faces`` (bool) of ``mesh`` as a ControlMesh with its intervals (one per strip
     of the submesh, taken from the parent), creases, corners and holes.
 
-    Returns (submesh, face ids in the parent, vertex ids in the parent, half-edge ids in the
-    parent)."""
+    Returns (submesh, its Topology, face ids in the parent, vertex ids in the parent,
+    half-edge ids in the parent); the Topology is also the one ``topology_of(submesh)`` gives."""
     fid = np.flatnonzero(faces)
     offsets = mesh.face_offsets
     sizes = offsets[fid + 1] - offsets[fid]
@@ -245,7 +246,8 @@ def _submesh(mesh: ControlMesh, topo: Topology, faces: np.ndarray, clear_semi_sh
     face_new[fid] = np.arange(fid.size)
     holes = frozenset(int(face_new[f]) for f in mesh.holes if face_new[f] >= 0)
     sub = replace(bare, intervals=intervals, creases=creases, corners=corners, holes=holes)
-    return sub, fid, vid, he
+    sub_topo = remember(sub, st.retagged(sub))  # the subdivision step of the next level asks for it
+    return sub, sub_topo, fid, vid, he
 
 
 # ------------------------------------------------------------------------------------------
@@ -364,9 +366,9 @@ def adaptive_operator(
         n_patch_faces = 0
         if leaves.any():
             chosen = _unpinch(topo, _grow(inc, leaves, PATCH_MARGIN))
-            sub, fid, vid, _ = _submesh(lev.mesh, topo, chosen, clear_semi_sharp=True)
+            sub, sub_topo, fid, vid, _ = _submesh(lev.mesh, topo, chosen, clear_semi_sharp=True)
             n_patch_faces = sub.n_faces
-            op = assemble(sub, Topology(sub), options)
+            op = assemble(sub, sub_topo, options)
             on_points = lev.rows[vid]
             for g in op.groups:
                 window_face = fid[g.faces]
@@ -392,9 +394,9 @@ def adaptive_operator(
         offsets = lev.mesh.face_offsets
         child_faces = np.zeros(child.n_faces, dtype=bool)
         child_faces[np.flatnonzero(parents[topo.face])] = True  # child face h of parent half-edge h
-        ctopo = Topology(child)
+        ctopo = topology_of(child)  # derived from the window's tables (``subdivision.child_topology``)
         child_faces = _unpinch(ctopo, child_faces)
-        sub, fid, vid, he = _submesh(child, ctopo, child_faces)
+        sub, sub_topo, fid, vid, he = _submesh(child, ctopo, child_faces)
         parent_he = fid  # child face id = parent half-edge id
         parent_face = topo.face[parent_he]
         corner = parent_he - offsets[parent_face]
@@ -405,7 +407,7 @@ def adaptive_operator(
         real = np.where(local_corner == 0, lev.real_boundary[ph], np.where(local_corner == 3, lev.real_boundary[topo.prev[ph]], False))
         rows = (s_step[vid] @ lev.rows).tocsr()
         next_domain = refine[parent_face]
-        lev_next = _Level(sub, Topology(sub), gid, rows, real)
+        lev_next = _Level(sub, sub_topo, gid, rows, real)
         lev_next.real_boundary = real & (lev_next.topo.twin < 0)
         if not keep_levels:
             lev.rows = None

@@ -44,6 +44,23 @@ class Topology:
         self._build_edges()
         self._check_manifold_vertices()
 
+    #: Cached tables that depend on the tags (intervals, creases), dropped by ``retagged``.
+    _TAGGED = ("strip_interval", "edge_interval", "halfedge_interval", "edge_sharpness", "face_spans")
+
+    def retagged(self, mesh: ControlMesh) -> "Topology":
+        """The Topology of ``mesh``, a mesh with this one's vertices count and faces but other
+        tags: the connectivity tables and the checks on them are this one's (not computed
+        again), the tables of intervals and creases are ``mesh``'s own when first asked for.
+        Its tags' checks (TagError, KnotError) run then, as for ``Topology(mesh)``."""
+        if mesh.n_vertices != self.n_vertices or not (
+            np.array_equal(mesh.face_offsets, self.mesh.face_offsets) and np.array_equal(mesh.face_vertices, self.mesh.face_vertices)
+        ):
+            raise ValueError("retagged: the mesh has other faces")
+        out = object.__new__(Topology)
+        out.__dict__.update({k: v for k, v in self.__dict__.items() if k not in self._TAGGED})
+        out.mesh = mesh
+        return out
+
     # -- edges and twins ------------------------------------------------------------------
     def _build_edges(self) -> None:
         lo = np.minimum(self.origin, self.dest)
