@@ -162,7 +162,11 @@ class OperatorCache:
             count = int(np.prod(shape, dtype=np.int64))
             if dtype.hasobject or count * dtype.itemsize != nbytes or offset + nbytes > len(region):
                 return None
-            arrays[array_name] = np.frombuffer(region, dtype=dtype, count=count, offset=offset).reshape(shape)
+            a = np.frombuffer(region, dtype=dtype, count=count, offset=offset).reshape(shape)
+            # M's arrays stay maps; the groups' and the patch topology's are copied out, as the
+            # surface keeps them after M is dropped, and a view would keep the whole file mapped
+            # (half-EP mesh: 150 MB more at the STEP writer's peak).
+            arrays[array_name] = a if array_name.startswith("m_") else a.copy()
         return operator_from_arrays(arrays, header["scalars"], name)
 
     # -- writing -----------------------------------------------------------------------------

@@ -78,6 +78,25 @@ def test_an_entry_comes_back_bit_for_bit_as_maps_of_its_file(tmp_path, name):
         assert back.topology.has_split_sides and all(g.spans is not None for g in back.groups)
 
 
+@pytest.mark.skipif(not os.path.exists("/proc/self/maps"), reason="reads the process's maps (Linux)")
+def test_the_file_is_unmapped_once_m_is_dropped(tmp_path):
+    """The surface keeps the groups and the patch topology, not M: those arrays are copied out
+    of the map, so dropping the operator unmaps the entry (else the whole file stays resident
+    through the B-rep and the STEP writer)."""
+    import gc
+
+    mesh, cache, key = _saved(tmp_path, "adaptive_semi_sharp")
+    path = str(cache.path(key))
+    mapped = lambda: path in open("/proc/self/maps").read()  # noqa: E731
+    op = cache.load(key, mesh.name)
+    assert mapped()
+    surface = op.evaluate(mesh.vertices)
+    del op
+    gc.collect()
+    assert not mapped()
+    assert surface.n_patches > 0 and surface.topology.has_split_sides
+
+
 @pytest.mark.parametrize("name", ["eps_random_intervals", "adaptive_semi_sharp", "grid_corner_hole"])
 @settings(max_examples=3, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
