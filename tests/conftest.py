@@ -22,6 +22,9 @@ if "NUPATCH_CACHE_DIR" not in os.environ:
 
     os.environ["NUPATCH_CACHE_DIR"] = tempfile.mkdtemp(prefix="nupatch-test-cache-")
     atexit.register(shutil.rmtree, os.environ["NUPATCH_CACHE_DIR"], True)
+# Whole operators (export.operator_cache) are kept there too, up to 1 GB by default: the suite's
+# many builds keep to a quarter of that on machines with little free disk.
+os.environ.setdefault("NUPATCH_OPERATOR_CACHE_MB", "256")
 
 
 def shape_files(prefix: str = "catmark_") -> list[Path]:
