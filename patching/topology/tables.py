@@ -44,8 +44,10 @@ class Topology:
         self._build_edges()
         self._check_manifold_vertices()
 
-    #: Cached tables that depend on the tags (intervals, creases), dropped by ``retagged``.
-    _TAGGED = ("strip_interval", "edge_interval", "halfedge_interval", "edge_sharpness", "face_spans")
+    #: Cached tables of the connectivity alone, which ``retagged`` keeps (it drops every other
+    #: cached table: those of the intervals and creases, and any added later).
+    _CONNECTIVITY = frozenset(("valence", "vertex_is_boundary", "vertex_is_used", "extraordinary", "outgoing",
+                               "vertex_outgoing", "edge_strip", "n_strips"))
 
     def retagged(self, mesh: ControlMesh) -> "Topology":
         """The Topology of ``mesh``, a mesh with this one's vertices count and faces but other
@@ -56,8 +58,9 @@ class Topology:
             np.array_equal(mesh.face_offsets, self.mesh.face_offsets) and np.array_equal(mesh.face_vertices, self.mesh.face_vertices)
         ):
             raise ValueError("retagged: the mesh has other faces")
+        cached = {k for k, v in vars(Topology).items() if isinstance(v, cached_property)}
         out = object.__new__(Topology)
-        out.__dict__.update({k: v for k, v in self.__dict__.items() if k not in self._TAGGED})
+        out.__dict__.update({k: v for k, v in self.__dict__.items() if k not in cached or k in self._CONNECTIVITY})
         out.mesh = mesh
         return out
 
