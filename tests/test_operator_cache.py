@@ -273,3 +273,43 @@ def test_moved_control_points_build_from_the_entry(tmp_path, cli_main, monkeypat
     assert len(cache.entries()) == 1 and cache.load(operator_key(patching.read_mesh(tmp_path / "b.obj"), BuildOptions()), "b")
     assert cli_main("build", tmp_path / "b.obj", "-o", tmp_path / "b_fresh.stl", "-q", "--no-cache").returncode == 0
     assert (tmp_path / "b.stl").read_bytes() == (tmp_path / "b_fresh.stl").read_bytes()
+
+
+def test_concurrent_builds_of_one_mesh_share_a_whole_entry(tmp_path, run_cli, monkeypatch):
+    """Three ``nupatch build`` processes of the same mesh at once, over one empty cache, while
+    a fourth process evicts everything in a loop: each writes the right file, and what the
+    cache holds afterwards is whole (or nothing, if the evictor had the last word)."""
+    import subprocess
+    import sys
+
+    from export import write_obj
+    from tests.conftest import NUPATCH
+
+    mesh = MESHES["adaptive_semi_sharp"]
+    write_obj(mesh, tmp_path / "m.obj")
+    monkeypatch.setenv("NUPATCH_CACHE_DIR", str(tmp_path / "cache"))  # for run_cli's builds too
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    evictor = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom export.operator_cache import OperatorCache\n"
+         "c = OperatorCache(sys.argv[1])\nend = time.monotonic() + 20\n"
+         "while time.monotonic() < end:\n    c.evict(max_bytes=0)\n    time.sleep(0.01)\n", str(tmp_path / "cache")],
+        env=env)
+    builds = [subprocess.Popen([*NUPATCH, "build", "m.obj", "-o", f"out{i}.stl", "-q"], cwd=tmp_path, env=env,
+                               stderr=subprocess.PIPE, text=True) for i in range(3)]
+    for p in builds:
+        assert p.wait(timeout=300) == 0, p.stderr.read()
+    evictor.kill()
+    evictor.wait()
+    fresh = tmp_path / "fresh.stl"
+    assert run_cli("build", tmp_path / "m.obj", "-o", fresh, "-q", "--no-cache").returncode == 0
+    for i in range(3):
+        assert (tmp_path / f"out{i}.stl").read_bytes() == fresh.read_bytes()
+    cache = OperatorCache(tmp_path / "cache")
+    key = operator_key(patching.read_mesh(tmp_path / "m.obj"), BuildOptions())
+    leftovers = [p.name for p in cache.directory.iterdir() if p.name != f"{key}.npop"]
+    assert leftovers == []
+    if cache.path(key).exists():
+        assert_same_operator(cache.load(key, "m"), patching.build_operator(patching.read_mesh(tmp_path / "m.obj")))
+    # and a build now (no evictor) leaves the whole entry
+    assert run_cli("build", tmp_path / "m.obj", "-o", tmp_path / "again.stl", "-q").returncode == 0
+    assert cache.load(key, "m") is not None
