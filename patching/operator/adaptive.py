@@ -108,11 +108,16 @@ class _Level:
     status: np.ndarray = field(default=None)
     patch: np.ndarray = field(default=None)
 
-    def local(self, gid: int) -> int:
-        """Window face of a global id (-1 where not in the window)."""
-        if not hasattr(self, "_index"):
-            self._index = {int(g): i for i, g in enumerate(self.gid.tolist())}
-        return self._index.get(gid, -1)
+    def local_faces(self, gids: np.ndarray) -> np.ndarray:
+        """Window faces of global ids (-1 where not in the window)."""
+        gids = np.asarray(gids, dtype=np.int64)
+        if self.gid.size == 0:
+            return np.full(gids.shape, -1, dtype=np.int64)
+        if not hasattr(self, "_order"):
+            self._order = np.argsort(self.gid, kind="stable")
+        ranked = self.gid[self._order]
+        at = np.minimum(np.searchsorted(ranked, gids), ranked.size - 1)
+        return np.where(ranked[at] == gids, self._order[at], -1)
 
 
 @dataclass(frozen=True)
@@ -424,54 +429,70 @@ def adaptive_operator(
 
 
 def _junctions(levels: list[_Level], mesh0: ControlMesh) -> np.ndarray:
-    """Pairs of leaf sides that meet (AdaptivePatches.junctions), found by walking from every
-    leaf side into the same-level face across it and down its refined descendants."""
+    """Pairs of leaf sides that meet (AdaptivePatches.junctions): per level, the leaf sides
+    facing a leaf of the same level (once per pair), then those facing a refined face, each
+    followed by the leaf pieces along the refined face's side (``_pieces_along``)."""
     out = []
     for j, lev in enumerate(levels):
         topo = lev.topo
         leaf_faces = np.flatnonzero(lev.status == 1)
         if leaf_faces.size == 0:
             continue
-        offsets = topo.mesh.face_offsets if topo.mesh is not None else None
+        offsets = topo.mesh.face_offsets
         h = (offsets[leaf_faces][:, None] + np.arange(4)[None, :]).ravel()
         t = topo.twin[h]
-        inside = t >= 0
-        h, t = h[inside], t[inside]
-        g = topo.face[t]
-        side_f = h - offsets[topo.face[h]]
-        side_g = t - offsets[g]
+        h, t = h[t >= 0], t[t >= 0]
+        f, g = topo.face[h], topo.face[t]
+        side_f, side_g = h - offsets[f], t - offsets[g]
         same = (lev.status[g] == 1) & (h < t)
-        for a, b, ka, kb in zip(topo.face[h][same], g[same], side_f[same], side_g[same]):
-            pa, pb = lev.patch[a], lev.patch[b]
-            if pa >= 0 and pb >= 0:
-                out.append((pa, ka, pb, kb, 0.0, 1.0))
-        down = lev.status[g] == 2
-        for f, gg, kf, kg in zip(topo.face[h][down], g[down], side_f[down], side_g[down]):
-            pf = lev.patch[f]
-            if pf < 0:
-                continue
-            for pg, sg, a, b in _descend(levels, mesh0, j, int(lev.gid[gg]), int(kg), 0.0, 1.0):
-                # g's side parameter runs against f's: u_f = 1 - u_g.
-                out.append((pf, kf, pg, sg, 1.0 - b, 1.0 - a))
-    return np.array(out, dtype=np.float64).reshape(-1, 6)
+        same &= (lev.patch[f] >= 0) & (lev.patch[g] >= 0)
+        ones = np.ones(int(same.sum()))
+        out.append(np.stack([lev.patch[f[same]], side_f[same], lev.patch[g[same]], side_g[same], 0 * ones, ones], axis=1))
+        down = (lev.status[g] == 2) & (lev.patch[f] >= 0)
+        out.append(_pieces_along(levels, mesh0, j, lev.patch[f[down]], side_f[down], lev.gid[g[down]], side_g[down]))
+    return np.concatenate(out).astype(np.float64).reshape(-1, 6) if out else np.zeros((0, 6))
 
 
-def _descend(levels: list[_Level], mesh0: ControlMesh, j: int, gid: int, side: int, a: float, b: float):
-    """Yield the leaf pieces (patch, side, u0, u1) along ``side`` of the refined level-j face
-    ``gid``, u in that side's parameter, restricted to [a, b]."""
-    nxt = levels[j + 1]
-    mid = 0.5 * (a + b)
-    for corner, child_side, lo, hi in ((side, 0, a, mid), ((side + 1) % 4, 3, mid, b)):
-        cg = int(_child_gid(j, mesh0, gid, corner))
-        f = nxt.local(cg)
-        if f < 0 or nxt.status[f] == 0:
+def _pieces_along(
+    levels: list[_Level], mesh0: ControlMesh, j: int, patch: np.ndarray, side: np.ndarray, gid: np.ndarray, gside: np.ndarray
+) -> np.ndarray:
+    """(k, 6) junction rows (patch, side, fine patch, fine side, u0, u1) of leaf sides ``side``
+    of ``patch`` (level j) facing side ``gside`` of the refined level-j faces ``gid``: the
+    refined face's side is halved level by level (its corner ``gside`` child's side 0 takes
+    [a, mid], the next corner's child's side 3 [mid, b]) down to leaves; the rows of one leaf
+    side come in order along the refined side, and u runs against it on the coarse side
+    (u_f = 1 - u_g).  Vectorised over all pieces of a level."""
+    n = patch.size
+    which, at_lo, pg, sg, at_hi = [], [], [], [], []
+    owner, a, b = np.arange(n), np.zeros(n), np.ones(n)
+    k = j
+    while owner.size:
+        nxt = levels[k + 1]
+        mid = 0.5 * (a + b)
+        owner = np.repeat(owner, 2)
+        corner = np.stack([gside, (gside + 1) % 4], axis=1).ravel()
+        child_side = np.tile([0, 3], gid.size)
+        lo, hi = np.stack([a, mid], axis=1).ravel(), np.stack([mid, b], axis=1).ravel()
+        cg = _child_gid(k, mesh0, np.repeat(gid, 2), corner)
+        f = nxt.local_faces(cg)
+        status = np.where(f >= 0, nxt.status[np.maximum(f, 0)], 0)
+        if np.any(status == 0):
             raise AssertionError("a refined face's child is missing from the next domain (a bug)")
-        if nxt.status[f] == 1:
-            if nxt.patch[f] >= 0:
-                # The child's side runs along the parent's side in the same direction.
-                yield int(nxt.patch[f]), child_side, lo, hi
-        else:
-            yield from _descend(levels, mesh0, j + 1, cg, child_side, lo, hi)
+        leaf = (status == 1) & (nxt.patch[f] >= 0)
+        which.append(owner[leaf])
+        at_lo.append(lo[leaf])
+        at_hi.append(hi[leaf])
+        pg.append(nxt.patch[f[leaf]])
+        sg.append(child_side[leaf])
+        go = status == 2
+        owner, gid, gside, a, b = owner[go], cg[go], child_side[go], lo[go], hi[go]
+        k += 1
+    if not which:
+        return np.zeros((0, 6))
+    which, at_lo, at_hi, pg, sg = (np.concatenate(x) for x in (which, at_lo, at_hi, pg, sg))
+    order = np.lexsort((at_lo, which))  # per leaf side, along the refined side
+    which, at_lo, at_hi, pg, sg = which[order], at_lo[order], at_hi[order], pg[order], sg[order]
+    return np.stack([patch[which], side[which], pg, sg, 1.0 - at_hi, 1.0 - at_lo], axis=1)
 
 
 def child_parameters(corner: int, s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
