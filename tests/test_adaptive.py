@@ -100,3 +100,49 @@ def test_steps_follow_build_operator():
     assert global_steps(patching.from_arrays(v, f)) == 0
     assert global_steps(patching.from_arrays(v, f, creases={(0, 1): 2.2})) == 3
     assert global_steps(patching.from_arrays(v, f, creases={(0, 1): 12.0}, corners={3: 1.5})) == 2
+
+
+def _junctions_by_walking(levels, mesh0):
+    """The junctions as a recursive walk finds them: every leaf side into the face across
+    it, then down that face's refined descendants (first half of the side, then second)."""
+    def child(j, gid, corner):
+        return mesh0.face_offsets[gid] + corner if j == 0 else 4 * gid + corner
+
+    def walk(j, gid, side, a, b):
+        nxt = levels[j + 1]
+        where = {int(g): i for i, g in enumerate(nxt.gid.tolist())}
+        mid = 0.5 * (a + b)
+        for corner, child_side, lo, hi in ((side, 0, a, mid), ((side + 1) % 4, 3, mid, b)):
+            cg = int(child(j, gid, corner))
+            f = where[cg]
+            if nxt.status[f] == 1:
+                if nxt.patch[f] >= 0:
+                    yield int(nxt.patch[f]), child_side, lo, hi
+            else:
+                yield from walk(j + 1, cg, child_side, lo, hi)
+
+    out = []
+    for j, lev in enumerate(levels):
+        topo, offsets = lev.topo, lev.topo.mesh.face_offsets
+        same_level, down = [], []
+        for f in np.flatnonzero(lev.status == 1).tolist():
+            for k in range(4):
+                h = offsets[f] + k
+                t = topo.twin[h]
+                if t < 0 or lev.patch[f] < 0:
+                    continue
+                g = topo.face[t]
+                if lev.status[g] == 1 and h < t and lev.patch[g] >= 0:
+                    same_level.append((lev.patch[f], k, lev.patch[g], t - offsets[g], 0.0, 1.0))
+                elif lev.status[g] == 2:
+                    down += [(lev.patch[f], k, pg, sg, 1.0 - b, 1.0 - a) for pg, sg, a, b in walk(j, int(lev.gid[g]), int(t - offsets[g]), 0.0, 1.0)]
+        out += same_level + down
+    return np.array(out, dtype=np.float64).reshape(-1, 6)
+
+
+@pytest.mark.parametrize("name,mesh", CASES[:7], ids=[c[0] for c in CASES[:7]])
+def test_junctions_are_those_a_recursive_walk_finds(name, mesh):
+    """The vectorised junctions (``adaptive._junctions``) equal, row for row and in order, those
+    of a walk written here: the B-rep's numbering of split sides follows their order."""
+    ap, levels = adaptive_operator(mesh, keep_levels=True)
+    assert np.array_equal(ap.junctions, _junctions_by_walking(levels, mesh))
