@@ -3,7 +3,7 @@
 M depends on the mesh's topology, intervals, tags and the options only
 (``patching.operator.archive``), so a build of a mesh whose control points moved takes M from
 the last build of the same mesh instead of assembling it again: on the pawn (semi-sharp,
-adaptive) 4.4 s of a ~10 s build, on benchmarks/build.py's half-EP mesh 1.2-1.9 s.  The entry
+adaptive) 3.5-4.4 s of a 10-11 s build, on benchmarks/build.py's half-EP mesh 1.2-1.9 s.  The entry
 is mapped, not read: its pages come from the page cache when M is used, without the fresh
 memory that assembling M touches (docs/speed.md, "Whole operators").
 
@@ -22,8 +22,8 @@ the file: an entry removed or replaced while mapped stays readable (POSIX).
 Size cap: ``$NUPATCH_OPERATOR_CACHE_MB`` MB (default 1,024; an operator of the half-EP
 mesh's 15k bi-quintic patches is 170 MB, the pawn's 230 MB).  After a write that takes the
 entries over the cap, the least recently used go, down to ``EVICT_TO`` of it (as in the solve
-cache); a read refreshes an entry's mtime once an hour at
-most.  An operator larger than the cap is not written.  ``--no-cache`` and
+cache); a read refreshes an entry's mtime once an hour at most.  An operator larger than the
+cap is not written.  ``--no-cache`` and
 ``NUPATCH_NO_CACHE=1`` turn this cache off with the solve cache; OS errors make it a no-op.
 """
 
@@ -259,7 +259,12 @@ def using_operator_cache(enabled: bool = True, root: str | os.PathLike | None = 
     disables the caches); the block's end waits for its writes, or abandons them when the
     block is interrupted (KeyboardInterrupt, SIGTERM)."""
     cache = OperatorCache(root) if enabled and not cache_disabled() else None
-    with closed_at_end(lambda interrupted: cache is not None and cache.close(abandon=interrupted)):
+
+    def close(interrupted: bool) -> None:
+        if cache is not None:
+            cache.close(abandon=interrupted)
+
+    with closed_at_end(close):
         yield cache
 
 
