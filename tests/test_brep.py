@@ -143,3 +143,22 @@ def test_first_side_may_run_against_its_edge():
     bad_rule = PatchTopology(topo.corner_vertex, topo.side_edge, topo.side_reversed ^ flipped, 8, 12)
     shape = to_shape(BezierSurface(good.groups, bad_rule, "cube", good.size))
     assert volume(shape) == pytest.approx(1.0, abs=1e-13)
+
+
+def test_a_bad_net_is_named_by_its_patch_and_face():
+    """The nets are checked a group at a time; the message names the first bad patch in row
+    order and its face, as a patch-by-patch check would."""
+    import dataclasses
+
+    surf = cube((3, 3, 5, 5, 3, 5))  # groups of degree 3 and 5: rows 0-2 and 3-5
+    g = surf.groups[1]
+    nets = g.coefficients.copy()
+    nets[2, 1, 4, 0] = np.nan
+    bad = dataclasses.replace(surf, groups=(surf.groups[0], dataclasses.replace(g, coefficients=nets)) + surf.groups[2:])
+    row = len(surf.groups[0].faces) + 2
+    with pytest.raises(BrepError, match=rf"^patch {row} \(face {int(g.faces[2])}\): non-finite coefficients$"):
+        to_shape(bad)
+    listed = dataclasses.replace(g, coefficients=[np.zeros((6, 6, 3)), np.zeros((4, 4, 3)), np.zeros((6, 6, 3))])
+    odd = dataclasses.replace(surf, groups=(surf.groups[0], listed) + surf.groups[2:])
+    with pytest.raises(BrepError, match=rf"^patch {len(surf.groups[0].faces) + 1} \(face {int(g.faces[1])}\): net shape \(4, 4, 3\), degree 5$"):
+        to_shape(odd)
