@@ -68,6 +68,10 @@ class _Bar:
         while not self.stop.wait(0.5):
             if self.bar.format_dict["elapsed"] >= self.DELAY:
                 self.bar.refresh()
+                # tqdm's close() clears the line only if it printed after its delay, and it
+                # learns that from ``last_print_t``, which refresh() leaves alone: without this
+                # a bar shown only by the ticker stayed on the line, before the summary.
+                self.bar.last_print_t = time.time()
 
     def describe(self, text: str) -> None:
         self.bar.set_description_str(text, refresh=False)

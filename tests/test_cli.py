@@ -447,3 +447,22 @@ def test_pack_keeps_the_global_steps_that_build_leaves_for_the_adaptive_path(tmp
     assert result.returncode == 0, result.stderr
     assert packed.exists() and packed.stat().st_size < (tmp_path / "plain.step").stat().st_size
     assert plain[1] < 30 * 4**3 // 4  # adaptive: 258 patches
+
+
+def test_a_bar_shown_only_by_its_ticker_is_cleared_at_the_end(monkeypatch, capsys):
+    """All updates before the delay, the bar shown by the ticker alone: closing it must still
+    clear the line, so that the next line starts at its beginning."""
+    import argparse
+    import time
+
+    from export import cli
+
+    monkeypatch.setenv("NUPATCH_PROGRESS", "1")
+    monkeypatch.setattr(cli._Bar, "DELAY", 0.2)
+    with cli._Bar(argparse.Namespace(quiet=False), 4, "stages", "x: reading") as bar:
+        bar.update()
+        time.sleep(1.3)  # the ticker (every 0.5 s) shows it at least once
+    err = capsys.readouterr().err
+    assert "1/4 stages" in err, err
+    # what stays on the line after the last carriage return is blank
+    assert err.split("\r")[-1].strip() == "", repr(err)
