@@ -835,10 +835,13 @@ def _eigen_solve(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
 def subdivision_eigenvalues(
     intervals, angles: str = "standard", lengths: str = "fourier"
 ) -> np.ndarray:
-    """Eigenvalues of :func:`local_subdivision_matrix`, (2n+1,) complex128, by modulus, largest
-    first (ties: larger real part first).  By construction 1 and ``lambda`` (twice) are among
-    them; G1 needs ``1 > lambda = lambda > |others|`` ([TLC] sec. 3), which the
-    construction does not guarantee ([TLC] sec. 6: "no proof").  Measured
+    """Eigenvalues of :func:`local_subdivision_matrix`, (2n+1,) complex128 whether or not
+    LAPACK found a complex pair (lambda's double root may come out as a pair +-1e-16 i, or as
+    two real values, depending on the machine's kernels and on whether the matrix was analysed
+    alone or in a batch), by modulus, largest first (ties: larger real part first).  By
+    construction 1 and ``lambda`` (twice) are among them; G1 needs ``1 > lambda = lambda >
+    |others|`` ([TLC] sec. 3), which the construction does not guarantee ([TLC] sec. 6: "no
+    proof").  Measured
     (``benchmarks/eigen.py``, default options, spoke ratio max/min = r, intervals uniform or
     log-uniform in [1, r], n = 3..16):
 
@@ -862,7 +865,7 @@ def subdivision_eigenvalues(
     """
     _check_choice("angles", angles, ANGLE_CHOICES)
     _check_choice("lengths", lengths, LENGTH_CHOICES)
-    return _eigen(_key(intervals)[0], angles, lengths).eigenvalues
+    return _eigen(_key(intervals)[0], angles, lengths).eigenvalues.astype(np.complex128)
 
 
 def limit_point_weights(
