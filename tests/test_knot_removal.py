@@ -6,7 +6,7 @@ result stays exact."""
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from OCP.Geom import Geom_BSplineCurve, Geom_BSplineSurface
 from OCP.gp import gp_Pnt
@@ -50,6 +50,12 @@ def bezier_form_curve(curve: Geom_BSplineCurve, fine: np.ndarray) -> np.ndarray:
 
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 6), st.integers(0, 40))
+# A true knot beside a span 1e-4 of its neighbours, its jumps too small for the local test at
+# that span's scale: before the fit's repair put back the knots whose jumps stand out, these
+# came back with 28, 23 and 12 breakpoints (an exact but not the fewest-knot spline).
+@example(3733, 5, 36)
+@example(12361, 5, 31)
+@example(16684, 3, 8)
 def test_curve_comes_back_to_its_own_knots(seed, n_spans, extra):
     rng = np.random.default_rng(seed)
     x, mults, fine = random_knots(rng, n_spans, extra)
