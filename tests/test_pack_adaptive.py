@@ -38,11 +38,25 @@ EXACT = 1e-12
 CASES = [(p, False) for p in PATHS] + [(p, True) for p in PATHS if p.stem == "catmark_cube_creases1"]
 
 
+#: Rings of level-9 leaves beside extraordinary points, where sub-tolerance jumps add up and
+#: the fit puts knots back that no join alone needs (``kept_knots``): only the exactness test.
+BESIDE_EPS = [p for p in shape_files("catmark_") if p.stem == "catmark_gregory_test7"]
+
+
 @pytest.fixture(scope="module", params=CASES, ids=[p.stem + ("-random" if r else "") for p, r in CASES])
 def adaptive(request):
+    return _packed(*request.param)
+
+
+@pytest.fixture(scope="module", params=BESIDE_EPS, ids=[p.stem for p in BESIDE_EPS])
+def beside_eps(request):
+    return _packed(request.param, False)
+
+
+def _packed(path, random_intervals: bool):
+    """The mesh, its adaptive surface, the packed shape and its report."""
     from tests.helpers import with_random_intervals
 
-    path, random_intervals = request.param
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mesh = patching.read_mesh(path)
@@ -114,6 +128,22 @@ def test_packed_faces_are_the_adaptive_patches(adaptive):
     parameters of its span, against de Casteljau on the unpacked patch (its net turned as
     ``Block.turns`` says): within 1e-12 of the size.  Every patch is in one face exactly."""
     _, surface, shape, report = adaptive
+    _assert_faces_are_the_patches(surface, shape, report)
+
+
+@pytest.mark.skipif(not BESIDE_EPS, reason="../shared/opensubdiv-shapes is absent")
+def test_packed_faces_beside_eps_are_the_adaptive_patches(beside_eps):
+    """The same on gregory_test7, whose rings of level-9 leaves keep the knots the fit puts
+    back (``kept_knots``: those whose jumps stand out first, then bisection), and with fewer
+    poles than its packed patches' Bézier nets have."""
+    _, surface, shape, report = beside_eps
+    _assert_faces_are_the_patches(surface, shape, report)
+    poles = sum(BRep_Tool.Surface_s(f).NbUPoles() * BRep_Tool.Surface_s(f).NbVPoles() for f in faces_of(shape)[: report.packed_faces])
+    assert poles < report.packed_patches
+
+
+def _assert_faces_are_the_patches(surface, shape, report) -> None:
+    """The check of ``test_packed_faces_are_the_adaptive_patches`` (its docstring)."""
     nets = [net for _, _, _, net in surface.patches()]
     faces = faces_of(shape)
     assert len(faces) == report.faces and report.packed_faces > 0
