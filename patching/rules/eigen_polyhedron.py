@@ -684,7 +684,7 @@ def rule_coefficients(
 
 
 class _Eigen(NamedTuple):
-    eigenvalues: np.ndarray
+    eigenvalues: np.ndarray  # complex128 always (subdivision_eigenvalues)
     limit: np.ndarray
     tangent: np.ndarray
     projector: np.ndarray
@@ -692,24 +692,23 @@ class _Eigen(NamedTuple):
 
 def _eigen_arrays(e: _Eigen) -> list[np.ndarray]:
     """An eigen-structure as the cache's float arrays (eigenvalues split into real and
-    imaginary parts, complex or real as ``np.linalg.eigvals`` gave them)."""
+    imaginary parts)."""
     ev = e.eigenvalues
-    return [ev.real, np.imag(ev), np.array([float(np.iscomplexobj(ev))]), e.limit, e.tangent, e.projector]
+    return [ev.real, ev.imag, e.limit, e.tangent, e.projector]
 
 
 def _eigen_valid(args: tuple, arrays: list[np.ndarray]) -> bool:
     """A cache entry of ``_eigen(*args)`` is trusted if its shapes fit the valence and the
     limit weights sum to 1."""
     size = 2 * len(args[0]) + 1
-    re, im, is_complex, limit, tangent, projector = arrays
-    return (re.shape == im.shape == limit.shape == (size,) and is_complex.shape == (1,)
+    re, im, limit, tangent, projector = arrays
+    return (re.shape == im.shape == limit.shape == (size,)
             and tangent.shape == (2, size) and projector.shape == (size - 1, size) and abs(limit.sum() - 1.0) <= 1e-9)
 
 
 def _eigen_from(arrays: list[np.ndarray]) -> _Eigen:
-    re, im, is_complex, limit, tangent, projector = arrays
-    ev = re + 1j * im if is_complex[0] else re
-    return _Eigen(_frozen(ev), _frozen(limit), _frozen(tangent), _frozen(projector))
+    re, im, limit, tangent, projector = arrays
+    return _Eigen(_frozen(re + 1j * im), _frozen(limit), _frozen(tangent), _frozen(projector))
 
 
 @memo(4096)
@@ -717,7 +716,7 @@ def _eigen(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
     """``_eigen_solve`` through the persistent cache of ``patching.util.solve_cache`` (when one
     is installed; ``_eigen_valid`` judges an entry)."""
     args = (key, angles, lengths)
-    arrays = lookup("eigen_polyhedron", args, 6, lambda: _eigen_arrays(_eigen_solve(*args)), lambda a: _eigen_valid(args, a))
+    arrays = lookup("eigen_polyhedron", args, 5, lambda: _eigen_arrays(_eigen_solve(*args)), lambda a: _eigen_valid(args, a))
     return _eigen_from(arrays)
 
 
@@ -741,7 +740,7 @@ def _eigen_many(keys: list[tuple[float, ...]], angles: str, lengths: str) -> lis
 
     if todo:
         args_list = [(k, angles, lengths) for k in todo]
-        for args, arrays in zip(args_list, lookup_many("eigen_polyhedron", args_list, 6, solve_many, _eigen_valid)):
+        for args, arrays in zip(args_list, lookup_many("eigen_polyhedron", args_list, 5, solve_many, _eigen_valid)):
             _eigen.prime(args, _eigen_from(arrays))
     return [_eigen(k, angles, lengths) for k in keys]
 
@@ -772,7 +771,7 @@ def _eigen_solve_batch(keys: list[tuple[float, ...]], angles: str, lengths: str)
     projector = (dmat @ right) @ left
     out = []
     for j in range(g):
-        e = ev[j] if np.iscomplexobj(ev) and np.any(ev[j].imag != 0.0) else ev[j].real  # as eigvals alone
+        e = ev[j].astype(np.complex128)
         e = e[np.lexsort((-e.real, -np.round(np.abs(e), 12)))]
         out.append(_Eigen(_frozen(e), _frozen(limit[j]), _frozen(left[j]), _frozen(projector[j])))
     return out
@@ -801,7 +800,7 @@ def _eigen_solve(key: tuple[float, ...], angles: str, lengths: str) -> _Eigen:
     size = mat.shape[0]
     n = (size - 1) // 2
     lam = coeffs.lam
-    ev = np.linalg.eigvals(mat)
+    ev = np.linalg.eigvals(mat).astype(np.complex128)
     order = np.lexsort((-ev.real, -np.round(np.abs(ev), 12)))
     ev = ev[order]
 
@@ -865,7 +864,7 @@ def subdivision_eigenvalues(
     """
     _check_choice("angles", angles, ANGLE_CHOICES)
     _check_choice("lengths", lengths, LENGTH_CHOICES)
-    return _eigen(_key(intervals)[0], angles, lengths).eigenvalues.astype(np.complex128)
+    return _eigen(_key(intervals)[0], angles, lengths).eigenvalues
 
 
 def limit_point_weights(
