@@ -328,13 +328,18 @@ def knot_multiplicities(along: np.ndarray, d: np.ndarray, tol: float) -> np.ndar
     r = np.minimum(da, db)
     ok = np.ones(n - 1, dtype=bool)
     cont = np.full(n - 1, -1, dtype=np.int64)
-    for j in range(p + 1):
-        end = np.diff(along[:-1], n=j, axis=1)[:, -1]  # Delta^j b_{p-j} of the left span
-        start = np.diff(along[1:], n=j, axis=1)[:, 0]  # Delta^j b_0 of the right one
+    for j, end, start in _join_differences(along):
         jump = end * ((r / da) ** j)[:, None, None] - start * ((r / db) ** j)[:, None, None]
         ok &= np.sqrt(np.einsum("kmc,kmc->km", jump, jump)).max(axis=1) <= tol
         cont[ok] = j
     return p - cont.clip(0, p)  # not even C0 (a bad join): p, and the check refuses it
+
+
+def _join_differences(along: np.ndarray):
+    """For j = 0..p, at each interior breakpoint of the spans along (n, p + 1, m, c): j,
+    Delta^j b_{p-j} of the left span and Delta^j b_0 of the right one, each (n - 1, m, c)."""
+    for j in range(along.shape[1]):
+        yield j, np.diff(along[:-1], n=j, axis=1)[:, -1], np.diff(along[1:], n=j, axis=1)[:, 0]
 
 
 #: A removed breakpoint whose derivative jump exceeds the roundoff bound (``_join_scores``) and
@@ -356,14 +361,12 @@ def _join_scores(along: np.ndarray, d: np.ndarray) -> np.ndarray:
     0.1 to 0.25); a true knot whose jumps were too small for ``knot_multiplicities`` at the
     scale of a tiny neighbouring span still stands out from them (1.6 to 3 in the cases that
     the property test found)."""
-    n, p1 = along.shape[:2]
     da, db = d[:-1], d[1:]
     bound = np.finfo(np.float64).eps * max(float(np.abs(along).max()), np.finfo(np.float64).tiny)
-    score = np.zeros(n - 1)
-    for j in range(p1):
-        end = np.diff(along[:-1], n=j, axis=1)[:, -1] / (da**j)[:, None, None]
-        start = np.diff(along[1:], n=j, axis=1)[:, 0] / (db**j)[:, None, None]
-        jump = np.sqrt(np.einsum("kmc,kmc->km", end - start, end - start)).max(axis=1)
+    score = np.zeros(along.shape[0] - 1)
+    for j, end, start in _join_differences(along):
+        step = end / (da**j)[:, None, None] - start / (db**j)[:, None, None]
+        jump = np.sqrt(np.einsum("kmc,kmc->km", step, step)).max(axis=1)
         score = np.maximum(score, jump / (2.0**j * bound * (da**-j + db**-j)))
     return score
 
@@ -492,9 +495,11 @@ def kept_knots(along: np.ndarray, x: np.ndarray, tol: float, exact: float) -> np
         runs = [(int(kept[s]), int(kept[s + 1])) for s in np.unique(np.searchsorted(kept, np.flatnonzero(bad), side="right") - 1)]
         # Knots the local test missed first, alone: the error of a run that lacks one spreads
         # through the least-squares fit into its neighbours, which would otherwise be split too.
-        score = _join_scores(along, np.diff(x)) if score is None else score
-        missed = [k for k in (_stands_out(score, lo, hi) for lo, hi in runs if hi - lo >= 2) if k is not None]
-        if missed and round_ < STANDOUT_ROUNDS:
+        missed = []
+        if round_ < STANDOUT_ROUNDS and any(hi - lo >= 2 for lo, hi in runs):
+            score = _join_scores(along, np.diff(x)) if score is None else score
+            missed = [k for k in (_stands_out(score, lo, hi) for lo, hi in runs if hi - lo >= 2) if k is not None]
+        if missed:
             mults[missed] = 1
             continue
         changed = False
