@@ -826,6 +826,6 @@ def test_frame_preconditioner_is_exact_for_one_normal(monkeypatch):
     assert backward <= 4 * eps, backward / eps
     # Forward, the dense solve is itself only good to cond(K) eps |x| (cond 5.7e6 here: the
     # tangential stiffness is alpha = 1e-6 of the normal one), and two backward-stable solves
-    # differ by up to twice that (1.4e-9 measured on AMD EPYC's OpenBLAS kernels, 1e-10 on others).
+    # differ by up to twice that (1.36e-9 measured on AMD EPYC's OpenBLAS kernels).
     bound = 2 * np.linalg.cond(K) * eps * np.abs(x_dense).max()
     np.testing.assert_allclose(x_ours, x_dense, rtol=0, atol=bound)
